@@ -1,0 +1,11 @@
+"""The ``pendsweep`` command line.
+
+Each command group lives in its own private module and registers itself on
+:data:`main`; user-facing errors (:class:`pendsweep.errors.PendsweepError`)
+become a one-line message and exit status 2, never a traceback.
+"""
+
+from ._app import main
+
+
+__all__ = ["main"]

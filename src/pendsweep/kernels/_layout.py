@@ -1,0 +1,36 @@
+"""Status codes and per-period record layout shared by every kernel.
+
+Kernels return integer status codes only; :mod:`pendsweep.status` turns them
+into names and messages. A record row holds one forcing period.
+"""
+
+# Status codes returned by kernels.
+STATUS_OK = 0
+STATUS_DIVERGED = 1  # state became non-finite
+STATUS_UNSTABLE = 2  # loop instability detected (substructured backend)
+
+# Columns of a per-period record row (float64).
+REC_THETA_PEAK = 0  # signed wrapped theta of largest |theta| in the period [rad]
+REC_THETA_ABSMAX = 1  # max |wrapped theta| in the period [rad]
+REC_Y_SEC = 2  # stroboscopic section at the period's end (forcing phase 0)
+REC_YDOT_SEC = 3
+REC_THETA_SEC = 4  # wrapped to (-pi, pi]
+REC_THETADOT_SEC = 5
+REC_Y_ABSMAX = 6  # max |y| in the period [m]
+REC_ROTATIONS = 7  # net full rotations in the period (signed count)
+N_RECORD_COLUMNS = 8
+
+RECORD_COLUMNS = (
+    "theta_peak",
+    "theta_absmax",
+    "y_sec",
+    "ydot_sec",
+    "theta_sec",
+    "thetadot_sec",
+    "y_absmax",
+    "rotations",
+)
+
+# Index of each parameter in the kernel parameter vector (ModelParams.kernel_array).
+P_M_PEND, P_L, P_B1, P_B2, P_B3, P_G, P_M, P_C, P_K, P_K3 = range(10)
+N_PARAMS = 10

@@ -1,0 +1,58 @@
+"""Per-step bookkeeping of the per-period records, shared by all kernels."""
+
+import math
+
+import numba as nb
+
+from ._layout import (
+    REC_ROTATIONS,
+    REC_THETA_ABSMAX,
+    REC_THETA_PEAK,
+    REC_THETA_SEC,
+    REC_THETADOT_SEC,
+    REC_Y_ABSMAX,
+    REC_Y_SEC,
+    REC_YDOT_SEC,
+)
+
+TWO_PI = 2.0 * math.pi
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def wrap_index(theta):
+    """Integer k with theta - 2 pi k in (-pi, pi]."""
+    return math.ceil((theta - math.pi) / TWO_PI)
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def wrap_angle(theta):
+    """theta wrapped to (-pi, pi]."""
+    return theta - TWO_PI * wrap_index(theta)
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def record_open(row):
+    for j in range(row.shape[0]):
+        row[j] = 0.0
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def record_sample(row, y, theta):
+    """Fold one sample into the running extremes of the current period."""
+    w = wrap_angle(theta)
+    aw = abs(w)
+    if aw > row[REC_THETA_ABSMAX]:
+        row[REC_THETA_ABSMAX] = aw
+        row[REC_THETA_PEAK] = w
+    ay = abs(y)
+    if ay > row[REC_Y_ABSMAX]:
+        row[REC_Y_ABSMAX] = ay
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def record_close(row, y, ydot, theta, thetadot, turns):
+    row[REC_Y_SEC] = y
+    row[REC_YDOT_SEC] = ydot
+    row[REC_THETA_SEC] = wrap_angle(theta)
+    row[REC_THETADOT_SEC] = thetadot
+    row[REC_ROTATIONS] = turns

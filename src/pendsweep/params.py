@@ -1,0 +1,217 @@
+"""Reference parameter sets and their validation.
+
+Every default number in pendsweep lives here, so that tests, figures, the CLI
+and the docs share one source. Values are SI throughout.
+
+The model is Eqs. (1)-(2) of Gonzalez-Buelga, Wagg & Neild (2007), with the
+pendulum damping ``f_d = b1 sgn(w) + b2 w + b3 w^2 sgn(w)`` and an optional
+cubic spring term ``k3 y^3`` (zero by default, used by model extensions).
+The oscillator mass and damping are split as ``M = M1 + M2`` and
+``C = C1 + C2`` for the substructured test, where ``M2`` and ``C2`` belong to
+the physical mounting platform (Table IV).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+import numpy as np
+
+from .errors import ParameterError
+
+__all__ = [
+    "ENCODER_RESOLUTION",
+    "ModelParams",
+    "ParamSpec",
+    "PARAM_SPECS",
+    "TABLE_IV",
+    "FIG8",
+    "FIG9_PO",
+    "FIG9_CO",
+    "FIG11A",
+    "FIG11B",
+    "ParameterError",
+    "check_value",
+]
+
+#: Encoder resolution [rad/pulse], Table III. "At rest" means |theta| below this.
+ENCODER_RESOLUTION = 0.0013
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """Unit, accepted range and meaning of one model parameter."""
+
+    unit: str
+    lower: float = -math.inf
+    lower_inclusive: bool = True
+    upper: float = math.inf
+    doc: str = ""
+
+    def describe_range(self) -> str:
+        lo = "[" if self.lower_inclusive else "("
+        lo_v = "-inf" if self.lower == -math.inf else f"{self.lower:g}"
+        hi_v = "inf" if self.upper == math.inf else f"{self.upper:g}"
+        return f"{lo}{lo_v}, {hi_v})"
+
+    def accepts(self, value: float) -> bool:
+        if not math.isfinite(value):
+            return False
+        if self.lower_inclusive:
+            ok_lo = value >= self.lower
+        else:
+            ok_lo = value > self.lower
+        return ok_lo and value < self.upper
+
+
+_POS = dict(lower=0.0, lower_inclusive=False)
+_NONNEG = dict(lower=0.0, lower_inclusive=True)
+
+#: Units, ranges and meanings of every parameter a sweep may step.
+PARAM_SPECS: dict[str, ParamSpec] = {
+    "m": ParamSpec("kg", **_POS, doc="pendulum mass"),
+    "l": ParamSpec("m", **_POS, doc="pendulum length"),
+    "b1": ParamSpec("kg m^2/s^2", **_NONNEG, doc="pendulum Coulomb friction"),
+    "b2": ParamSpec("kg m^2/s", **_NONNEG, doc="pendulum viscous damping"),
+    "b3": ParamSpec("kg m^2", **_NONNEG, doc="pendulum quadratic (air) drag"),
+    "g": ParamSpec("m/s^2", **_POS, doc="gravitational acceleration"),
+    "M": ParamSpec("kg", **_POS, doc="oscillator mass, M = M1 + M2"),
+    "C": ParamSpec("kg/s", **_NONNEG, doc="oscillator damping, C = C1 + C2"),
+    "K": ParamSpec("N/m", **_POS, doc="oscillator stiffness"),
+    "k3": ParamSpec("N/m^3", doc="cubic spring coefficient (restoring force K y + k3 y^3)"),
+    "M2": ParamSpec("kg", **_NONNEG, doc="platform mass (physical part of M)"),
+    "C2": ParamSpec("kg/s", **_NONNEG, doc="platform damping (physical part of C)"),
+    "alpha": ParamSpec("N", **_NONNEG, doc="forcing amplitude, F_e = alpha sin(2 pi fe t)"),
+    "fe": ParamSpec("Hz", **_POS, doc="forcing frequency"),
+    # Derived on assignment: setting M1 sets M = M1 + M2, setting C1 sets C = C1 + C2.
+    "M1": ParamSpec("kg", **_POS, doc="numerical-model mass, M1 = M - M2"),
+    "C1": ParamSpec("kg/s", **_NONNEG, doc="numerical-model damping, C1 = C - C2"),
+}
+
+
+def check_value(name: str, value: float) -> float:
+    """Return ``value`` as float, or raise :class:`ParameterError` naming the range."""
+    if name not in PARAM_SPECS:
+        raise ParameterError(
+            f"unknown parameter {name!r}; known parameters: {', '.join(PARAM_SPECS)}"
+        )
+    spec = PARAM_SPECS[name]
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{name} = {value!r} is not a number") from None
+    if not spec.accepts(v):
+        raise ParameterError(
+            f"{name} = {v!r} {spec.unit} is outside the accepted range "
+            f"{spec.describe_range()} ({spec.doc})"
+        )
+    return v
+
+
+@dataclass(frozen=True)
+class ModelParams:
+    """Physical parameters of the pendulum-oscillator system and its forcing.
+
+    Defaults are Table IV (pendulum, platform) and the oscillator of Figs. 9-11:
+    ``M = 10.9 kg``, ``C = 20 kg/s``, ``K = 1910 N/m``, forced at
+    ``alpha = 17 N``, ``fe = 2.5 Hz``.
+    """
+
+    m: float = 0.27
+    l: float = 0.1955
+    b1: float = 3.01411e-4
+    b2: float = 4.5067e-5
+    b3: float = 9.17e-7
+    g: float = 9.81
+    M: float = 10.9
+    C: float = 20.0
+    K: float = 1910.0
+    k3: float = 0.0
+    M2: float = 0.9
+    C2: float = 10.0
+    alpha: float = 17.0
+    fe: float = 2.5
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            check_value(f.name, getattr(self, f.name))
+
+    # -- derived quantities -------------------------------------------------
+    @property
+    def M1(self) -> float:
+        """Numerical-model mass [kg]."""
+        return self.M - self.M2
+
+    @property
+    def C1(self) -> float:
+        """Numerical-model damping [kg/s]."""
+        return self.C - self.C2
+
+    @property
+    def omega_p(self) -> float:
+        """Pendulum natural frequency sqrt(g/l) [rad/s]."""
+        return math.sqrt(self.g / self.l)
+
+    @property
+    def omega_nm(self) -> float:
+        """Oscillator natural frequency sqrt(K/(M+m)) with theta = 0 [rad/s]."""
+        return math.sqrt(self.K / (self.M + self.m))
+
+    @property
+    def omega_e(self) -> float:
+        """Forcing angular frequency 2 pi fe [rad/s]."""
+        return 2.0 * math.pi * self.fe
+
+    @property
+    def omega_hat(self) -> float:
+        """Frequency ratio omega_e / (2 omega_p), the abscissa of Fig. 10."""
+        return self.omega_e / (2.0 * self.omega_p)
+
+    # -- construction -------------------------------------------------------
+    def replace(self, **changes: float) -> "ModelParams":
+        """Return a copy with ``changes`` applied; ``M1``/``C1`` set ``M``/``C``.
+
+        Raises :class:`ParameterError` for unknown names or values out of range.
+        """
+        direct: dict[str, float] = {}
+        for name, value in changes.items():
+            v = check_value(name, value)
+            if name == "M1":
+                direct["M"] = v + changes.get("M2", self.M2)
+            elif name == "C1":
+                direct["C"] = v + changes.get("C2", self.C2)
+            else:
+                direct[name] = v
+        return dataclasses.replace(self, **direct)
+
+    @classmethod
+    def from_mapping(cls, mapping: Mapping[str, Any]) -> "ModelParams":
+        """Defaults updated by ``mapping`` (unknown keys raise ParameterError)."""
+        return cls().replace(**dict(mapping))
+
+    def to_dict(self) -> dict[str, float]:
+        return dataclasses.asdict(self)
+
+    def kernel_array(self) -> np.ndarray:
+        """Contiguous float64 ``[m, l, b1, b2, b3, g, M, C, K, k3]`` for the kernels."""
+        return np.array(
+            [self.m, self.l, self.b1, self.b2, self.b3, self.g, self.M, self.C, self.K, self.k3],
+            dtype=np.float64,
+        )
+
+
+#: Table IV test-rig parameters with the Figs. 9-11 oscillator.
+TABLE_IV = ModelParams()
+#: Fig. 8: 2:1 internal resonance and quenching, alpha = 2 N, fe = 2.25 Hz.
+FIG8 = TABLE_IV.replace(alpha=2.0, fe=2.25)
+#: Fig. 9(a): periodic orbit (PO), alpha = 5 N, fe = 2.2 Hz.
+FIG9_PO = TABLE_IV.replace(alpha=5.0, fe=2.2)
+#: Fig. 9(b): chaotic orbit (CO), alpha = 12 N, fe = 2.2 Hz.
+FIG9_CO = TABLE_IV.replace(alpha=12.0, fe=2.2)
+#: Fig. 11(a): alpha swept 0-45 N at fe = 2.5 Hz (alpha here is the start value).
+FIG11A = TABLE_IV.replace(alpha=0.0, fe=2.5)
+#: Fig. 11(b): M swept at alpha = 17 N, fe = 2.5 Hz.
+FIG11B = TABLE_IV.replace(alpha=17.0, fe=2.5)

@@ -1,0 +1,430 @@
+"""Sweep planner: step one model parameter and record theta peaks.
+
+One function, :func:`run_sweep`, in the spirit of an orbit diagram:
+``(backend, parameter, values; transient_periods, record_periods, initial)``.
+
+Modes
+-----
+``continue``
+    The state is carried from point to point along a branch, as a physical
+    experiment does. Before every point after the first, if the pendulum is
+    at rest (max |theta| over the recorded periods below ``rest_threshold``,
+    one encoder pulse by default) it is perturbed by ``theta += kick``, as in
+    the paper. A branch whose point diverged restarts from ``initial``.
+``fresh``
+    Every point starts from ``initial``.
+``multistart``
+    ``starts`` initial conditions per point: start 0 is ``initial``, the
+    others draw theta uniformly on (-pi, pi] and thetadot uniformly on
+    (-omega_p, omega_p) from ``numpy.random.default_rng([seed, point])``,
+    so each point's starts are reproducible whatever the execution order.
+
+Directions ``up`` and ``down`` traverse the values in ascending and
+descending order; ``both`` runs the two branches (in parallel), which
+exposes hysteresis. Fresh and multistart points are independent, so their
+``direction`` column is ``"none"`` and they run in parallel.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import queue
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Iterable, Iterator
+
+import numpy as np
+import pandas as pd
+from joblib import Parallel, delayed
+
+from ._version import __version__
+from .backends import PointRun, make_backend
+from .errors import ConfigError
+from .kernels import RECORD_COLUMNS
+from .params import ENCODER_RESOLUTION, PARAM_SPECS, ModelParams, check_value
+from .results import ResultStore, config_hash
+from .status import Status
+
+MODES = ("continue", "fresh", "multistart")
+DIRECTIONS = ("up", "down", "both")
+KEY_COLUMNS = ["direction", "point", "start"]
+
+
+def value_range(start: float, stop: float, step: float | None = None, points: int | None = None) -> np.ndarray:
+    """Grid from ``start`` to ``stop`` inclusive, by ``step`` or with ``points`` values.
+
+    With ``step`` the values are ``start + i*step`` (no accumulated rounding),
+    and ``stop`` is included when it lies on the grid (to 1e-9 of a step).
+    """
+    for name, v in (("from", start), ("to", stop)):
+        if not math.isfinite(v):
+            raise ConfigError(f"range {name} = {v!r} is not finite")
+    if (step is None) == (points is None):
+        raise ConfigError("give exactly one of step or points for a range")
+    if points is not None:
+        if int(points) < 1:
+            raise ConfigError(f"points = {points!r} must be a positive integer")
+        return np.linspace(start, stop, int(points))
+    if not math.isfinite(step) or step == 0:
+        raise ConfigError(f"step = {step!r} must be finite and non-zero")
+    span = stop - start
+    if span != 0 and math.copysign(1.0, span) != math.copysign(1.0, step):
+        raise ConfigError(
+            f"step = {step:g} has the wrong sign for a range from {start:g} to {stop:g}; "
+            f"use step {'>' if span > 0 else '<'} 0"
+        )
+    count = int(math.floor(span / step + 1e-9)) + 1
+    return start + step * np.arange(count)
+
+
+@dataclass(frozen=True)
+class SweepConfig:
+    """Everything that determines a sweep's results (stored in every result file).
+
+    Attributes
+    ----------
+    parameter : str
+        Name of the stepped parameter (see ``pendsweep.params.PARAM_SPECS``).
+    values : tuple of float
+        The parameter values, in ascending order.
+    model : dict
+        Overrides of the default :class:`~pendsweep.params.ModelParams`.
+    mode, direction : str
+        See the module docstring.
+    backend : str
+        Registered backend name; ``backend_options`` are its options.
+    transient_periods, record_periods : int
+        Forcing periods discarded, then recorded, at every point (paper: 100, 20).
+    initial : tuple of 4 floats
+        ``(y [m], ydot [m/s], theta [rad], thetadot [rad/s])`` at the first point.
+    kick : float
+        Perturbation [rad] added to theta when the pendulum is at rest (continue mode).
+    rest_threshold : float
+        "At rest" means max |theta| below this [rad]; one encoder pulse by default.
+    starts : int
+        Initial conditions per point (multistart mode).
+    seed : int
+        Seed of every random source (multistart draws, backend noise).
+    """
+
+    parameter: str
+    values: tuple[float, ...]
+    model: dict[str, float] = field(default_factory=dict)
+    mode: str = "continue"
+    direction: str = "up"
+    backend: str = "emulated"
+    backend_options: dict[str, Any] = field(default_factory=dict)
+    transient_periods: int = 100
+    record_periods: int = 20
+    initial: tuple[float, float, float, float] = (0.0, 0.0, 0.1, 0.0)
+    kick: float = 0.1
+    rest_threshold: float = ENCODER_RESOLUTION
+    starts: int = 1
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.parameter not in PARAM_SPECS:
+            raise ConfigError(
+                f"unknown parameter {self.parameter!r}; steppable parameters: {', '.join(PARAM_SPECS)}"
+            )
+        if len(self.values) == 0:
+            raise ConfigError("a sweep needs at least one parameter value")
+        vals = tuple(sorted(check_value(self.parameter, v) for v in self.values))
+        object.__setattr__(self, "values", vals)
+        object.__setattr__(self, "initial", tuple(float(v) for v in self.initial))
+        if self.mode not in MODES:
+            raise ConfigError(f"mode = {self.mode!r}; choose one of {', '.join(MODES)}")
+        if self.direction not in DIRECTIONS:
+            raise ConfigError(f"direction = {self.direction!r}; choose one of {', '.join(DIRECTIONS)}")
+        for name, lo in (("transient_periods", 0), ("record_periods", 1), ("starts", 1)):
+            v = getattr(self, name)
+            if int(v) != v or v < lo:
+                raise ConfigError(f"{name} = {v!r} must be an integer >= {lo}")
+        if len(self.initial) != 4 or not all(math.isfinite(v) for v in self.initial):
+            raise ConfigError(f"initial = {self.initial!r} must be 4 finite numbers (y, ydot, theta, thetadot)")
+        for name in ("kick", "rest_threshold"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0):
+                raise ConfigError(f"{name} = {v!r} rad must be a finite number >= 0")
+        for v in self.values:  # every point must be a valid model
+            self.params_at(v)
+        self.make_backend()
+
+    # -- derived ----------------------------------------------------------------
+    @property
+    def base_params(self) -> ModelParams:
+        return ModelParams.from_mapping(self.model)
+
+    def params_at(self, value: float) -> ModelParams:
+        return self.base_params.replace(**{self.parameter: value})
+
+    def make_backend(self):
+        backend = make_backend(self.backend, **self.backend_options)
+        for v in (self.values[0], self.values[-1]):
+            backend.validate(self.params_at(v))
+        return backend
+
+    def branches(self) -> list[tuple[str, list[int]]]:
+        """``(direction label, point indices in traversal order)`` per branch."""
+        idx = list(range(len(self.values)))
+        if self.mode != "continue":
+            return [("none", idx)]
+        out = []
+        if self.direction in ("up", "both"):
+            out.append(("up", idx))
+        if self.direction in ("down", "both"):
+            out.append(("down", idx[::-1]))
+        return out
+
+    @property
+    def n_units(self) -> int:
+        """Number of (branch, point, start) units of work."""
+        return sum(len(ix) for _, ix in self.branches()) * (self.starts if self.mode == "multistart" else 1)
+
+    def to_dict(self) -> dict[str, Any]:
+        d = dataclasses.asdict(self)
+        d["values"] = list(self.values)
+        d["initial"] = list(self.initial)
+        d["model"] = self.base_params.to_dict()  # fully resolved
+        d["backend_options"] = self.make_backend().options()
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> "SweepConfig":
+        known = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(d) - known)
+        if unknown:
+            raise ConfigError(f"unknown sweep key(s): {', '.join(unknown)}; known: {', '.join(sorted(known))}")
+        d = dict(d)
+        d["values"] = tuple(d.get("values", ()))
+        if "initial" in d:
+            d["initial"] = tuple(d["initial"])
+        return cls(**d)
+
+
+def multistart_initials(config: SweepConfig, point: int) -> np.ndarray:
+    """The ``(starts, 4)`` initial conditions of one point in multistart mode."""
+    out = np.empty((config.starts, 4))
+    out[0] = config.initial
+    if config.starts > 1:
+        rng = np.random.default_rng([config.seed, point])
+        wp = config.params_at(config.values[point]).omega_p
+        n = config.starts - 1
+        out[1:, 0] = 0.0
+        out[1:, 1] = 0.0
+        out[1:, 2] = np.pi - 2 * np.pi * rng.random(n)  # (-pi, pi]
+        out[1:, 3] = wp * (2 * rng.random(n) - 1)
+    return out
+
+
+@dataclass
+class PointResult:
+    """One finished unit of work, ready to be written."""
+
+    direction: str
+    point: int
+    start: int
+    value: float
+    run: PointRun
+    kicked: bool
+
+    @property
+    def key(self) -> str:
+        return f"{self.direction}:{self.point}:{self.start}"
+
+
+def result_rows(config: SweepConfig, r: PointResult) -> pd.DataFrame:
+    """Long-form rows of one unit: one row per recorded period."""
+    n = r.run.records.shape[0]
+    df = pd.DataFrame(r.run.records, columns=list(RECORD_COLUMNS))
+    df["rotations"] = df["rotations"].fillna(0).astype(np.int64)
+    df.insert(0, config.parameter, r.value)
+    df.insert(1, "direction", r.direction)
+    df.insert(2, "point", np.int64(r.point))
+    df.insert(3, "start", np.int64(r.start))
+    df.insert(4, "period", np.arange(n, dtype=np.int64))
+    df["kicked"] = r.kicked
+    df["status"] = r.run.status.value
+    return df
+
+
+def _continue_branch(config, backend, direction, indices, resume) -> Iterator[PointResult]:
+    """Walk one branch, carrying the state; ``resume`` describes finished units."""
+    state = None  # None: start (or restart) from config.initial
+    kick_next = False
+    for i in indices:
+        key = f"{direction}:{i}:0"
+        if key in resume:
+            info = resume[key]
+            state = np.asarray(info["state"], dtype=np.float64) if info["ok"] else None
+            kick_next = info["at_rest"]
+            continue
+        params = config.params_at(config.values[i])
+        kicked = False
+        if state is None:
+            state = backend.initial_state(params, *config.initial)
+        elif kick_next:
+            state = state.copy()
+            state[2] += config.kick
+            kicked = True
+        run = backend.run_point(params, state, config.transient_periods, config.record_periods)
+        yield PointResult(direction, i, 0, config.values[i], run, kicked)
+        ok = run.status is Status.OK
+        state = run.state if ok else None
+        kick_next = ok and float(np.nanmax(run.records[:, 1])) < config.rest_threshold
+
+
+def _independent_point(config, backend, i, starts_done) -> list[PointResult]:
+    params = config.params_at(config.values[i])
+    initials = multistart_initials(config, i) if config.mode == "multistart" else np.array([config.initial])
+    out = []
+    for s, ic in enumerate(initials):
+        if s in starts_done:
+            continue
+        run = backend.run_point(
+            params, backend.initial_state(params, *ic), config.transient_periods, config.record_periods
+        )
+        out.append(PointResult("none", i, s, config.values[i], run, False))
+    return out
+
+
+def _stream(tasks: list[Callable[[], Iterable[Any]]], n_jobs: int) -> Iterator[Any]:
+    """Run iterator-producing tasks on joblib's threading backend; yield items as they come.
+
+    The kernels release the GIL, so threads run them in parallel while the
+    caller's thread writes results as soon as each is finished.
+    """
+    if n_jobs == 1 or len(tasks) <= 1:
+        for task in tasks:
+            yield from task()
+        return
+    items: queue.Queue = queue.Queue()
+    _DONE = object()
+
+    def drain(task):
+        try:
+            for item in task():
+                items.put(item)
+        except BaseException as exc:  # re-raised in the caller's thread
+            items.put(exc)
+        finally:
+            items.put(_DONE)
+
+    runner = threading.Thread(
+        target=lambda: Parallel(n_jobs=n_jobs, backend="threading")(delayed(drain)(t) for t in tasks),
+        daemon=True,
+    )
+    runner.start()
+    remaining = len(tasks)
+    while remaining:
+        item = items.get()
+        if item is _DONE:
+            remaining -= 1
+        elif isinstance(item, BaseException):
+            raise item
+        else:
+            yield item
+    runner.join()
+
+
+def sweep_metadata(config: SweepConfig) -> dict[str, Any]:
+    cfg = config.to_dict()
+    return {
+        "kind": "sweep",
+        "config": cfg,
+        "config_hash": config_hash(cfg),
+        "package_version": __version__,
+        "backend": config.backend,
+        "seed": config.seed,
+        "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+    }
+
+
+def run_sweep(
+    config: SweepConfig,
+    output: Path | None = None,
+    *,
+    n_jobs: int = 1,
+    progress: bool = False,
+    overwrite: bool = False,
+) -> pd.DataFrame:
+    """Run (or resume) a sweep and return its long-form results.
+
+    Parameters
+    ----------
+    config : SweepConfig
+    output : Path, optional
+        Parquet file. When given, finished points are persisted as they come
+        and a rerun with the same configuration resumes; without it results
+        are only returned.
+    n_jobs : int
+        Parallel workers for independent branches or points (-1: all cores).
+    progress : bool
+        Show a progress bar (points done, rate, ETA) on stderr.
+    overwrite : bool
+        Discard earlier results at ``output`` instead of resuming.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per (direction, point, start, period), sorted; columns are
+        documented in the README.
+    """
+    from tqdm.auto import tqdm
+
+    backend = config.make_backend()
+    metadata = sweep_metadata(config)
+    store = ResultStore(output, metadata, KEY_COLUMNS, overwrite=overwrite) if output is not None else None
+    done_df, done_states = store.done() if store is not None else (pd.DataFrame(), {})
+    if store is not None and store.complete:
+        return done_df
+
+    frames = [done_df] if not done_df.empty else []
+    resume = _resume_info(done_df, done_states, config.rest_threshold)
+    bar = tqdm(total=config.n_units, initial=len(resume), unit="pt", disable=not progress, desc=config.parameter)
+
+    tasks: list[Callable[[], Iterable[PointResult]]] = []
+    if config.mode == "continue":
+        for direction, indices in config.branches():
+            tasks.append(lambda d=direction, ix=indices: _continue_branch(config, backend, d, ix, resume))
+    else:
+        for i in range(len(config.values)):
+            starts_done = {int(k.split(":")[2]) for k in resume if k.startswith(f"none:{i}:")}
+            if len(starts_done) < (config.starts if config.mode == "multistart" else 1):
+                tasks.append(lambda i=i, sd=starts_done: _independent_point(config, backend, i, sd))
+
+    try:
+        for item in _stream(tasks, n_jobs):
+            for r in item if isinstance(item, list) else [item]:
+                rows = result_rows(config, r)
+                frames.append(rows)
+                if store is not None:
+                    store.add(rows, r.key, r.run.state.tolist())
+                bar.update(1)
+    finally:
+        bar.close()
+        if store is not None:
+            store.flush()
+    if store is not None:
+        return store.finalize(KEY_COLUMNS + ["period"])
+    df = pd.concat(frames, ignore_index=True)
+    return df.sort_values(KEY_COLUMNS + ["period"], kind="stable").reset_index(drop=True)
+
+
+def _resume_info(done_df: pd.DataFrame, states: dict[str, list[float]], threshold: float) -> dict[str, dict]:
+    """Per finished unit: its final state, whether it ended OK and at rest."""
+    if done_df.empty:
+        return {}
+    info = {}
+    for (d, p, s), g in done_df.groupby(["direction", "point", "start"], sort=False):
+        key = f"{d}:{int(p)}:{int(s)}"
+        ok = bool((g["status"] == "ok").all())
+        info[key] = {
+            "state": states.get(key),
+            "ok": ok and states.get(key) is not None,
+            "at_rest": ok and float(g["theta_absmax"].max()) < threshold,
+        }
+    return info
