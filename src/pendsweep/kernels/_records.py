@@ -37,16 +37,24 @@ def record_open(row):
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
-def record_sample(row, y, theta):
-    """Fold one sample into the running extremes of the current period."""
+def fold_extremes(theta_absmax, theta_peak, y_absmax, y, theta):
+    """Running extremes of a period updated with one sample (branch-free, vectorisable).
+
+    Returns the new ``(theta_absmax, theta_peak, y_absmax)``.
+    """
     w = wrap_angle(theta)
     aw = abs(w)
-    if aw > row[REC_THETA_ABSMAX]:
-        row[REC_THETA_ABSMAX] = aw
-        row[REC_THETA_PEAK] = w
+    larger = aw > theta_absmax
     ay = abs(y)
-    if ay > row[REC_Y_ABSMAX]:
-        row[REC_Y_ABSMAX] = ay
+    return (aw if larger else theta_absmax), (w if larger else theta_peak), (ay if ay > y_absmax else y_absmax)
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def record_sample(row, y, theta):
+    """Fold one sample into the running extremes of the current period."""
+    row[REC_THETA_ABSMAX], row[REC_THETA_PEAK], row[REC_Y_ABSMAX] = fold_extremes(
+        row[REC_THETA_ABSMAX], row[REC_THETA_PEAK], row[REC_Y_ABSMAX], y, theta
+    )
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
