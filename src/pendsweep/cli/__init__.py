@@ -6,6 +6,6 @@ become a one-line message and exit status 2, never a traceback.
 """
 
 from ._app import main
-
+from . import _sweep  # noqa: F401,E402  (registers the sweep commands)
 
 __all__ = ["main"]
