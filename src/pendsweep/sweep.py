@@ -28,9 +28,8 @@ exposes hysteresis. Fresh and multistart points are independent, so their
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
-import queue
-import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -38,11 +37,11 @@ from typing import Any, Callable, Iterable, Iterator
 
 import numpy as np
 import pandas as pd
-from joblib import Parallel, delayed
 
 from ._version import __version__
 from .backends import PointRun, make_backend
 from .errors import ConfigError
+from .executors import Executor, LocalExecutor
 from .kernels import RECORD_COLUMNS
 from .params import ENCODER_RESOLUTION, PARAM_SPECS, ModelParams, check_value
 from .results import ResultStore, config_hash
@@ -291,43 +290,36 @@ def _independent_point(config, backend, i, starts_done) -> list[PointResult]:
     return out
 
 
-def _stream(tasks: list[Callable[[], Iterable[Any]]], n_jobs: int) -> Iterator[Any]:
-    """Run iterator-producing tasks on joblib's threading backend; yield items as they come.
+def _batched_units(config, backend, units, threads) -> list[PointResult]:
+    """Independent ``(point, start)`` units in one call of the backend's batched kernel."""
+    params, states = [], []
+    for i, s in units:
+        params.append(config.params_at(config.values[i]))
+        ic = multistart_initials(config, i)[s] if config.mode == "multistart" else config.initial
+        states.append(backend.initial_state(params[-1], *ic))
+    runs = backend.run_points(params, np.array(states), config.transient_periods, config.record_periods, threads)
+    return [PointResult("none", i, s, config.values[i], run, False) for (i, s), run in zip(units, runs)]
 
-    The kernels release the GIL, so threads run them in parallel while the
-    caller's thread writes results as soon as each is finished.
+
+def _independent_tasks(config, backend, resume, n_jobs, task_points) -> tuple[list[Callable], int]:
+    """Tasks for the fresh/multistart units not yet done, and the local thread count for them.
+
+    A backend with a batched kernel (``run_points``) gets chunks of
+    ``task_points`` units, each running on all ``n_jobs`` cores; otherwise
+    there is one task per point, ``n_jobs`` at a time.
     """
-    if n_jobs == 1 or len(tasks) <= 1:
-        for task in tasks:
-            yield from task()
-        return
-    items: queue.Queue = queue.Queue()
-    _DONE = object()
-
-    def drain(task):
-        try:
-            for item in task():
-                items.put(item)
-        except BaseException as exc:  # re-raised in the caller's thread
-            items.put(exc)
-        finally:
-            items.put(_DONE)
-
-    runner = threading.Thread(
-        target=lambda: Parallel(n_jobs=n_jobs, backend="threading")(delayed(drain)(t) for t in tasks),
-        daemon=True,
-    )
-    runner.start()
-    remaining = len(tasks)
-    while remaining:
-        item = items.get()
-        if item is _DONE:
-            remaining -= 1
-        elif isinstance(item, BaseException):
-            raise item
-        else:
-            yield item
-    runner.join()
+    n_starts = config.starts if config.mode == "multistart" else 1
+    if hasattr(backend, "run_points"):
+        units = [(i, s) for i in range(len(config.values)) for s in range(n_starts) if f"none:{i}:{s}" not in resume]
+        threads = None if n_jobs < 1 else n_jobs
+        chunks = [units[k : k + task_points] for k in range(0, len(units), task_points)]
+        return [functools.partial(_batched_units, config, backend, c, threads) for c in chunks], 1
+    tasks = []
+    for i in range(len(config.values)):
+        starts_done = {int(k.split(":")[2]) for k in resume if k.startswith(f"none:{i}:")}
+        if len(starts_done) < n_starts:
+            tasks.append(functools.partial(_independent_point, config, backend, i, starts_done))
+    return tasks, n_jobs
 
 
 def sweep_metadata(config: SweepConfig) -> dict[str, Any]:
@@ -350,6 +342,8 @@ def run_sweep(
     n_jobs: int = 1,
     progress: bool = False,
     overwrite: bool = False,
+    executor: Executor | None = None,
+    task_points: int = 256,
 ) -> pd.DataFrame:
     """Run (or resume) a sweep and return its long-form results.
 
@@ -366,6 +360,10 @@ def run_sweep(
         Show a progress bar (points done, rate, ETA) on stderr.
     overwrite : bool
         Discard earlier results at ``output`` instead of resuming.
+    executor : Executor, optional
+        Where tasks run (:mod:`pendsweep.executors`; default: this process).
+        Fresh and multistart points on a backend with a batched kernel go in
+        tasks of ``task_points`` points; a continue branch is one task.
 
     Returns
     -------
@@ -387,17 +385,16 @@ def run_sweep(
     bar = tqdm(total=config.n_units, initial=len(resume), unit="pt", disable=not progress, desc=config.parameter)
 
     tasks: list[Callable[[], Iterable[PointResult]]] = []
+    local_jobs = n_jobs
     if config.mode == "continue":
         for direction, indices in config.branches():
-            tasks.append(lambda d=direction, ix=indices: _continue_branch(config, backend, d, ix, resume))
+            tasks.append(functools.partial(_continue_branch, config, backend, direction, indices, resume))
     else:
-        for i in range(len(config.values)):
-            starts_done = {int(k.split(":")[2]) for k in resume if k.startswith(f"none:{i}:")}
-            if len(starts_done) < (config.starts if config.mode == "multistart" else 1):
-                tasks.append(lambda i=i, sd=starts_done: _independent_point(config, backend, i, sd))
+        tasks, local_jobs = _independent_tasks(config, backend, resume, n_jobs, task_points)
 
+    executor = executor or LocalExecutor()
     try:
-        for item in _stream(tasks, n_jobs):
+        for item in executor.map_unordered(tasks, local_jobs):
             for r in item if isinstance(item, list) else [item]:
                 rows = result_rows(config, r)
                 frames.append(rows)

@@ -15,6 +15,7 @@ from ..errors import ConfigError, ParameterError
 from ..params import PARAM_SPECS, ModelParams
 from ..sweep import DIRECTIONS, MODES, SweepConfig, run_sweep, value_range
 from ._app import FINITE, main
+from ._executor import apply_options, executor_options
 
 
 def _key_value(pairs: tuple[str, ...], what: str) -> dict[str, str]:
@@ -72,6 +73,7 @@ def sweep_options(default_step: float, unit: str):
             click.option("--starts", type=int, default=8, show_default=True, help="Initial conditions per point in multistart mode."),
             click.option("--seed", type=int, default=0, show_default=True, help="Seed of every random source."),
             click.option("-j", "--jobs", type=int, default=-1, show_default=True, help="Parallel workers for independent branches/points (-1: all cores)."),
+            *executor_options(),
             click.option("-o", "--output", type=click.Path(path_type=Path), default=None, help="Results parquet (default results/<parameter>.parquet)."),
             click.option("--overwrite", is_flag=True, help="Replace earlier results at --output instead of resuming."),
             click.option("--plot", "plot_path", type=click.Path(path_type=Path), default=None, help="Also draw the bifurcation diagram here (.png/.pdf)."),
@@ -137,8 +139,11 @@ def execute(
     progress: bool | None,
     plot_path: Path | None,
     title: str | None = None,
+    executor: str = "local",
+    scheduler: str | None = None,
 ) -> None:
-    """Run a sweep, print a summary, optionally plot."""
+    """Run a sweep (on ``executor``), print a summary, optionally plot."""
+    from ..executors import make_executor
     from ..plotting import plot_files
 
     if progress is None:
@@ -146,7 +151,11 @@ def execute(
     if output.exists() and not overwrite:
         click.echo(f"{output} exists: reusing it if its configuration matches (--overwrite recomputes)")
     t0 = time.perf_counter()
-    df = run_sweep(config, output, n_jobs=jobs, progress=progress, overwrite=overwrite)
+    runner = make_executor(executor, scheduler)
+    try:
+        df = run_sweep(config, output, n_jobs=jobs, progress=progress, overwrite=overwrite, executor=runner)
+    finally:
+        runner.close()
     elapsed = time.perf_counter() - t0
     units = df.groupby(["direction", "point", "start"])["status"].first()
     counts = ", ".join(f"{n} {s}" for s, n in units.value_counts().items())
@@ -163,7 +172,8 @@ def _sweep_command(name: str, parameter: str, default_step: float, help_text: st
     def command(**kw):
         config = build_config(parameter, default_step, kw)
         output = kw["output"] or Path(f"results/{parameter}.parquet")
-        execute(config, output, jobs=kw["jobs"], overwrite=kw["overwrite"], progress=kw["progress"], plot_path=kw["plot_path"])
+        execute(config, output, jobs=kw["jobs"], overwrite=kw["overwrite"], progress=kw["progress"], plot_path=kw["plot_path"],
+                executor=kw["executor"], scheduler=kw["scheduler"])
 
     return command
 
@@ -196,7 +206,8 @@ def sweep_any(parameter, **kw):
         raise ConfigError("give --step or --points for a generic sweep")
     config = build_config(parameter, 1.0, kw)
     output = kw["output"] or Path(f"results/{parameter}.parquet")
-    execute(config, output, jobs=kw["jobs"], overwrite=kw["overwrite"], progress=kw["progress"], plot_path=kw["plot_path"])
+    execute(config, output, jobs=kw["jobs"], overwrite=kw["overwrite"], progress=kw["progress"], plot_path=kw["plot_path"],
+            executor=kw["executor"], scheduler=kw["scheduler"])
 
 
 @main.command("run")
@@ -206,7 +217,8 @@ def sweep_any(parameter, **kw):
 @click.option("-j", "--jobs", type=int, default=-1, show_default=True, help="Parallel workers (-1: all cores).")
 @click.option("--overwrite", is_flag=True, help="Replace earlier results instead of resuming.")
 @click.option("--progress/--no-progress", default=None, help="Progress bar on stderr (default: when a terminal).")
-def run_definition(definition, output, do_plot, jobs, overwrite, progress):
+@apply_options(executor_options())
+def run_definition(definition, output, do_plot, jobs, overwrite, progress, executor, scheduler):
     """Run a declarative sweep (sweeps/NAME.toml), or regenerate a results parquet from its own metadata.
 
     Example: pendsweep run sweeps/fig11a.toml
@@ -225,7 +237,8 @@ def run_definition(definition, output, do_plot, jobs, overwrite, progress):
         config, output = spec.config, output or spec.output
         plot_path = spec.plot if do_plot else None
         title = spec.description or None
-    execute(config, output, jobs=jobs, overwrite=overwrite, progress=progress, plot_path=plot_path, title=title)
+    execute(config, output, jobs=jobs, overwrite=overwrite, progress=progress, plot_path=plot_path, title=title,
+            executor=executor, scheduler=scheduler)
 
 
 @main.command("plot", short_help="Draw a Fig. 11-style bifurcation diagram.")
