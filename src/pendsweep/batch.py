@@ -21,7 +21,7 @@ from .kernels._batched import batched_periods
 from .params import ModelParams
 
 #: Points integrated in lockstep by one thread (a chunk's working set stays in L1/L2).
-DEFAULT_CHUNK = 64
+DEFAULT_CHUNK = 128
 
 
 class BatchRun(NamedTuple):
@@ -130,13 +130,13 @@ def run_batch(
     out = np.full_like(records, np.nan)
     st = np.zeros(n, dtype=np.int64)
     dn = np.zeros(n, dtype=np.int64)
+    bounds = chunk_bounds(sorted_steps, int(chunk))
     previous = nb.get_num_threads()
-    if threads is not None:
-        nb.set_num_threads(max(1, min(int(threads), nb.config.NUMBA_NUM_THREADS)))
+    # No more threads than chunks: an idle thread only waits at the barrier.
+    nb.set_num_threads(max(1, min(int(threads or previous), nb.config.NUMBA_NUM_THREADS, len(bounds) - 1)))
     try:
         batched_periods(
-            soa, p, alpha, fe, sorted_steps, int(transient_periods), signum == "stage",
-            chunk_bounds(sorted_steps, int(chunk)), out, st, dn,
+            soa, p, alpha, fe, sorted_steps, int(transient_periods), signum == "stage", bounds, out, st, dn
         )
     finally:
         nb.set_num_threads(previous)

@@ -1,0 +1,331 @@
+"""Throughput of the batched kernel against its peers, measured side by side.
+
+All peers integrate the same points (a Fig. 10(b)-like grid: alpha x M at
+fe = 2.5 Hz, 400 RK4 steps of 1 ms per forcing period) and are reported as
+ns per point-step per core, point-steps per second per core, and how many
+times slower than the batched kernel they are. "Per core" is measured as
+process CPU time (all threads), which stays meaningful on a shared, loaded
+machine where wall time does not; wall times are reported alongside. A "point-step" is one 1 ms
+RK4 step of one parameter point; solve_ivp (adaptive RK45) is charged per
+1 ms of simulated time. Each peer runs a horizon long enough to time
+reliably and is scaled per point-step (stated in ``horizon_periods``).
+
+Also: the Fig. 10(a) grid (100 omega_hat x 100 alpha x 120 periods) end to
+end, throughput against batch size and thread count (plotted to
+``results/figures/throughput.png``), and what LLVM made of the inner loop.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import time
+from pathlib import Path
+from typing import Any, Callable
+
+import numba as nb
+import numpy as np
+
+from ..backends import make_backend
+from ..batch import run_batch
+from ..params import TABLE_IV, ModelParams
+from . import benchmark
+from .core import solve_ivp_point
+
+FIGURE = Path("results/figures/throughput.png")
+TARGETS = {
+    "batched_ns_per_point_step_per_core_max": 10.0,
+    "speedup_vs_scalar_min": 5.0,
+    "speedup_vs_jax_min": 10.0,
+    "speedup_vs_solve_ivp_min": 1000.0,
+    "fig10a_grid_seconds_max": 60.0,
+}
+
+
+def peer_points(n_alpha: int, n_mass: int) -> list[ModelParams]:
+    """alpha in [0, 40] N x M in [5.9, 20.9] kg (Fig. 10(b)'s masses) at fe = 2.5 Hz."""
+    return [TABLE_IV.replace(alpha=a, M=M) for M in np.linspace(5.9, 20.9, n_mass) for a in np.linspace(0, 40, n_alpha)]
+
+
+def fig10a_points(n_omega: int, n_alpha: int) -> list[ModelParams]:
+    """omega_hat in [0.9, 1.1] x alpha in [0, 40] N, Table IV otherwise."""
+    fe_per_omega_hat = 2.0 * TABLE_IV.omega_p / (2.0 * math.pi)
+    return [
+        TABLE_IV.replace(alpha=a, fe=w * fe_per_omega_hat)
+        for w in np.linspace(0.9, 1.1, n_omega)
+        for a in np.linspace(0, 40, n_alpha)
+    ]
+
+
+def _columns(params: list[ModelParams]) -> tuple[np.ndarray, ...]:
+    """Per-point parameter columns ``m, l, b1, b2, b3, g, M, C, K, k3, alpha, omega_e``."""
+    p = np.stack([q.kernel_array() for q in params], axis=1)
+    return (*p, np.array([q.alpha for q in params]), np.array([q.omega_e for q in params]))
+
+
+def numpy_rk4(params: list[ModelParams], states: np.ndarray, n_steps: int, dt: float) -> np.ndarray:
+    """Plain numpy RK4 of Eq. (11), vectorised across points (signum held per step)."""
+    m, l, b1, b2, b3, g, M, C, K, k3, alpha, w = _columns(params)
+    z = states.T.copy()
+
+    def rhs(z, force, sg):
+        y, yd, th, thd = z
+        s, c = np.sin(th), np.cos(th)
+        fd = b1 * sg + b2 * thd + b3 * thd * thd * sg
+        den = M + m * c * c
+        common = force - C * yd - K * y - k3 * y**3 - m * l * thd * thd * c + s * fd / l
+        return np.array([yd, (common + m * g * s * s) / den, thd, -(s / l) * (common + (M + m) * g) / den - fd / (m * l * l)])
+
+    for k in range(n_steps):
+        t = k * dt
+        sg = np.sign(z[3])
+        fh = alpha * np.sin(w * (t + 0.5 * dt))
+        k1 = rhs(z, alpha * np.sin(w * t), sg)
+        k2 = rhs(z + 0.5 * dt * k1, fh, sg)
+        k3_ = rhs(z + 0.5 * dt * k2, fh, sg)
+        k4 = rhs(z + dt * k3_, alpha * np.sin(w * (t + dt)), sg)
+        z = z + dt / 6.0 * (k1 + 2 * k2 + 2 * k3_ + k4)
+    return z.T
+
+
+def jax_rk4_factory():
+    """A jitted ``f(columns, states, n_steps, dt)``: JAX vmap over points of a lax.scan RK4 (float64)."""
+    import jax
+    import jax.numpy as jnp
+
+    jax.config.update("jax_enable_x64", True)
+
+    def point(cols, z0, n_steps, dt):
+        m, l, b1, b2, b3, g, M, C, K, k3, alpha, w = cols
+
+        def rhs(z, force, sg):
+            y, yd, th, thd = z
+            s, c = jnp.sin(th), jnp.cos(th)
+            fd = b1 * sg + b2 * thd + b3 * thd * thd * sg
+            den = M + m * c * c
+            common = force - C * yd - K * y - k3 * y**3 - m * l * thd * thd * c + s * fd / l
+            return jnp.stack([yd, (common + m * g * s * s) / den, thd, -(s / l) * (common + (M + m) * g) / den - fd / (m * l * l)])
+
+        def step(z, k):
+            t = k * dt
+            sg = jnp.sign(z[3])
+            fh = alpha * jnp.sin(w * (t + 0.5 * dt))
+            k1 = rhs(z, alpha * jnp.sin(w * t), sg)
+            k2 = rhs(z + 0.5 * dt * k1, fh, sg)
+            k3_ = rhs(z + 0.5 * dt * k2, fh, sg)
+            k4 = rhs(z + dt * k3_, alpha * jnp.sin(w * (t + dt)), sg)
+            return z + dt / 6.0 * (k1 + 2 * k2 + 2 * k3_ + k4), None
+
+        return jax.lax.scan(step, z0, jnp.arange(n_steps))[0]
+
+    batched = jax.jit(jax.vmap(point, in_axes=(1, 0, None, None)), static_argnums=(2,))
+
+    def run(params, states, n_steps, dt):
+        cols = jnp.asarray(np.stack(_columns(params)))
+        return np.asarray(batched(cols, jnp.asarray(states), n_steps, dt).block_until_ready())
+
+    return run
+
+
+def vector_instructions() -> dict[str, int]:
+    """Packed double instructions LLVM emitted for the batched inner loop, by register width."""
+    from ..kernels._batched import _N_CONST, _step_chunk
+
+    fn = nb.njit(error_model="numpy", fastmath={"contract"})(_step_chunk.py_func)  # uncached, to inspect
+    fn(*[np.zeros(8) for _ in range(7)], np.ones((_N_CONST, 8)), 0.0, False, True, 0.0, 0.0, 0.0)
+    asm = next(iter(fn.inspect_asm().values()))
+    ops = r"\bv(?:fn?m(?:add|sub)\d+|mul|add|sub|div|sqrt)pd\s+%?"
+    return {
+        "zmm_packed_double_ops": len(re.findall(ops + "zmm", asm)),
+        "ymm_packed_double_ops": len(re.findall(ops + "ymm", asm)),
+        "scalar_double_ops": len(re.findall(r"\bv(?:fn?m(?:add|sub)\d+|mul|add|sub|div)sd\b", asm)),
+    }
+
+
+def best_times(fn: Callable[[], Any], repeat: int = 3) -> tuple[float, float]:
+    """Smallest wall time and smallest process CPU time (all threads) [s] of ``repeat`` calls."""
+    walls, cpus = [], []
+    for _ in range(repeat):
+        w0, c0 = time.perf_counter(), time.process_time()
+        fn()
+        walls.append(time.perf_counter() - w0)
+        cpus.append(time.process_time() - c0)
+    return min(walls), min(cpus)
+
+
+def _row(name: str, times: tuple[float, float], point_steps: float, threads: int, horizon: float, note: str = "") -> dict:
+    wall, cpu = times
+    ns = 1e9 * cpu / point_steps
+    return {
+        "peer": name,
+        "threads": threads,
+        "ns_per_point_step_per_core": ns,
+        "point_steps_per_s_per_core": 1e9 / ns,
+        "wall_ns_per_point_step": 1e9 * wall / point_steps,
+        "horizon_periods": horizon,
+        "note": note,
+    }
+
+
+def _markdown(rows: list[dict]) -> list[str]:
+    lines = [
+        "| peer | threads | ns / point-step / core (CPU) | point-steps / s / core | wall ns / point-step | slower than pendsweep batched |",
+        "|---|---:|---:|---:|---:|---:|",
+    ]
+    for r in rows:
+        ratio = r.get("times_slower_than_batched")
+        ratio_text = "-" if ratio is None else f"{ratio:,.1f}x"
+        lines.append(
+            f"| {r['peer']} | {r['threads']} | {r['ns_per_point_step_per_core']:,.1f} | "
+            f"{r['point_steps_per_s_per_core']:.3g} | {r['wall_ns_per_point_step']:,.1f} | {ratio_text} |"
+        )
+    return lines
+
+
+def _scaling(quick: bool) -> dict:
+    """Throughput against batch size for 1 and 2 threads (uniform-fe points)."""
+    sizes = [1, 4, 16, 64, 256] if quick else [1, 2, 4, 8, 16, 32, 64, 128, 256, 512, 1024, 2048, 4096]
+    threads = [t for t in (1, 2) if t <= nb.config.NUMBA_NUM_THREADS]
+    budget = 2e5 if quick else 3e6  # point-steps per measurement
+    out: dict = {"batch_sizes": sizes}
+    base = peer_points(64, 64)
+    for t in threads:
+        rates = []
+        for n in sizes:
+            params = [base[i % len(base)] for i in range(n)]
+            periods = max(4, int(budget / (n * 400)))
+            states = np.tile([0.0, 0.0, 0.1, 0.0], (n, 1))
+            wall, _ = best_times(lambda: run_batch(params, states, 0, periods, threads=t), 3)
+            rates.append(n * periods * 400 / wall)
+        out[f"point_steps_per_s_threads_{t}"] = rates
+    return out
+
+
+def _plot(scaling: dict, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4))
+    sizes = scaling["batch_sizes"]
+    keys = [k for k in scaling if k.startswith("point_steps_per_s_threads_")]
+    for k in keys:
+        t = int(k.rsplit("_", 1)[1])
+        axes[0].loglog(sizes, scaling[k], "o-", label=f"{t} thread{'s' if t > 1 else ''}")
+    axes[0].set_xlabel("batch size [points]")
+    axes[0].set_ylabel("point-steps per second")
+    axes[0].set_title("Batched kernel: throughput vs batch size")
+    axes[0].grid(True, which="both", alpha=0.3)
+    axes[0].legend()
+    threads = [int(k.rsplit("_", 1)[1]) for k in keys]
+    largest = [scaling[k][-1] for k in keys]
+    axes[1].bar([str(t) for t in threads], largest, color="C2")
+    if threads:
+        axes[1].plot([str(t) for t in threads], [largest[0] * t for t in threads], "k--", label="linear scaling")
+        axes[1].legend()
+    axes[1].set_xlabel("numba threads")
+    axes[1].set_ylabel(f"point-steps per second (batch {sizes[-1]})")
+    axes[1].set_title("Throughput vs threads")
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=150)
+    plt.close(fig)
+
+
+@benchmark("throughput")
+def bench_throughput(quick: bool) -> dict:
+    """Batched kernel vs scalar kernel, numpy RK4, JAX and solve_ivp on the same points."""
+    threads = nb.config.NUMBA_NUM_THREADS
+    params = peer_points(8, 4) if quick else peer_points(16, 16)
+    n = len(params)
+    steps = 400  # fe = 2.5 Hz at dt = 1 ms
+    dt = 1.0 / (2.5 * steps)
+    states = np.tile([0.0, 0.0, 0.1, 0.0], (n, 1))
+    rows = []
+
+    horizon = 4 if quick else 20
+    run_batch(params, states, 0, 1)  # compile / load the cache
+    for t in sorted({1, threads}):
+        times = best_times(lambda: run_batch(params, states, 0, horizon, threads=t), 5)
+        rows.append(_row(f"pendsweep batched ({t} thread{'s' if t > 1 else ''})", times, n * horizon * steps, t, horizon))
+
+    backend = make_backend("emulated")
+    backend.run_point(params[0], states[0], 0, 1)
+    h_scalar = 1 if quick else 5
+    times = best_times(lambda: [backend.run_point(p, s, 0, h_scalar) for p, s in zip(params, states)], 3)
+    rows.append(_row("pendsweep scalar kernel", times, n * h_scalar * steps, 1, h_scalar))
+
+    h_numpy = 1 if quick else 2
+    times = best_times(lambda: numpy_rk4(params, states, h_numpy * steps, dt), 1 if quick else 3)
+    rows.append(_row("numpy RK4, vectorised across points", times, n * h_numpy * steps, 1, h_numpy))
+    agreement = {"numpy_rk4_vs_batched_final_state_max_abs_diff_after_1_period": float(
+        np.max(np.abs(numpy_rk4(params, states, steps, dt) - run_batch(params, states, 0, 1).states))
+    )}
+
+    try:
+        jax_run = jax_rk4_factory()
+    except ImportError:
+        jax_note = "jax not installed: pip install 'pendsweep[bench]' to add this peer"
+    else:
+        import jax
+
+        jax_run(params, states, horizon * steps, dt)  # compile
+        times = best_times(lambda: jax_run(params, states, horizon * steps, dt), 3)
+        rows.append(_row(f"JAX {jax.__version__} vmap + lax.scan RK4, float64, CPU", times, n * horizon * steps, threads,
+                         horizon, "XLA's own thread pool; CPU time of all its threads"))
+        z = jax_run(params, states, steps, dt)
+        z[:, 2] -= 2 * np.pi * np.ceil((z[:, 2] - np.pi) / (2 * np.pi))  # the kernels rewrap theta
+        agreement["jax_rk4_vs_batched_final_state_max_abs_diff_after_1_period"] = float(
+            np.max(np.abs(z - run_batch(params, states, 0, 1).states))
+        )
+        jax_note = "measured"
+
+    # Forced points spread over the grid (alpha = 0 alone would flatter the adaptive solver).
+    ivp_points = params[n // 8 :: max(1, n // (2 if quick else 4))]
+    h_ivp = 1
+    times = best_times(lambda: [solve_ivp_point(p, [0.0, 0.0, 0.1, 0.0], h_ivp) for p in ivp_points], 1)
+    rows.append(_row("scipy solve_ivp RK45 rtol 1e-8, per point", times, len(ivp_points) * h_ivp * steps, 1, h_ivp,
+                     f"{len(ivp_points)} points x {h_ivp} period, charged per 1 ms of simulated time"))
+
+    best = min(r["ns_per_point_step_per_core"] for r in rows if r["peer"].startswith("pendsweep batched"))
+    for r in rows:
+        r["times_slower_than_batched"] = r["ns_per_point_step_per_core"] / best
+    by_name = {r["peer"].split(" (")[0].split(",")[0]: r for r in rows}
+
+    result: dict = {
+        "points": n,
+        "steps_per_period": steps,
+        "numba_threads": threads,
+        "rows": rows,
+        "table_markdown": _markdown(rows),
+        "agreement": agreement,
+        "jax": jax_note,
+        "vector_instructions_of_inner_loop": vector_instructions(),
+        "targets": TARGETS,
+        "batched_ns_per_point_step_per_core": best,
+        "speedup_vs_scalar": by_name["pendsweep scalar kernel"]["times_slower_than_batched"],
+        "speedup_vs_solve_ivp": by_name["scipy solve_ivp RK45 rtol 1e-8"]["times_slower_than_batched"],
+    }
+    jax_rows = [r for r in rows if r["peer"].startswith("JAX")]
+    if jax_rows:
+        result["speedup_vs_jax"] = jax_rows[0]["times_slower_than_batched"]
+
+    grid = fig10a_points(10, 10) if quick else fig10a_points(100, 100)
+    periods = (5, 1) if quick else (100, 20)
+    run_batch(grid[:1], states[:1], 0, 1)
+    wall, cpu = best_times(lambda: run_batch(grid, np.tile([0.0, 0.0, 0.1, 0.0], (len(grid), 1)), *periods), 1)
+    result["fig10a_grid"] = {
+        "points": len(grid),
+        "periods_per_point": sum(periods),
+        "seconds": wall,
+        "cpu_seconds": cpu,
+        "threads": threads,
+        "point_steps": float(sum(sum(periods) * backend.steps_per_period(p) for p in grid)),
+    }
+
+    scaling = _scaling(quick)
+    result["scaling"] = scaling
+    _plot(scaling, FIGURE)
+    result["figure"] = str(FIGURE)
+    return result
