@@ -175,7 +175,8 @@ class ResultStore:
         df = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
         if not df.empty:
             # A part may repeat a unit only if a crash hit between two renames; keep one copy.
-            df = df.drop_duplicates(subset=self.key_columns + ["period"], keep="last")
+            unit_rows = self.key_columns + [c for c in ("period",) if c in df.columns]
+            df = df.drop_duplicates(subset=unit_rows, keep="last")
         return df, states
 
     # -- writing --------------------------------------------------------------
