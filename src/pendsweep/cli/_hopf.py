@@ -11,6 +11,7 @@ from ..errors import ConfigError
 from ..hopf import METHODS, HopfConfig, run_hopf
 from ..sweep import value_range
 from ._app import FINITE, main
+from ._sweep import _finite, _key_value
 
 
 def parse_values(text: str, what: str) -> tuple[float, ...]:
@@ -26,16 +27,6 @@ def parse_values(text: str, what: str) -> tuple[float, ...]:
         raise ConfigError(
             f"{what} = {text!r}: give FROM:TO:N (N points), a comma list A,B,C or a single number"
         ) from None
-
-
-def parse_assignments(pairs: tuple[str, ...], what: str) -> dict[str, str]:
-    out = {}
-    for pair in pairs:
-        name, sep, value = pair.partition("=")
-        if not sep or not name:
-            raise ConfigError(f"{what} {pair!r} must look like NAME=VALUE")
-        out[name.strip()] = value.strip()
-    return out
 
 
 @main.command()
@@ -75,9 +66,9 @@ def hopf(what, masses, methods, backend, backend_options, model, kick, periods, 
         omega_hat=parse_values(what, "--what"),
         masses=parse_values(masses, "--M"),
         methods=tuple(m.strip() for m in methods.split(",") if m.strip()),
-        model=_floats(parse_assignments(model, "--set")),
+        model={k: _finite(k, v) for k, v in _key_value(model, "--set").items()},
         backend=backend,
-        backend_options=parse_assignments(backend_options, "--backend-option"),
+        backend_options=_key_value(backend_options, "--backend-option"),
         kick=kick, periods=periods, tol=tol, alpha_max=alpha_max,
     )
     df = run_hopf(config, output, n_jobs=jobs, progress=progress, overwrite=overwrite)
@@ -85,12 +76,3 @@ def hopf(what, masses, methods, backend, backend_options, model, kick, periods, 
     click.echo(df[shown].to_string(index=False, float_format=lambda v: f"{v:.5g}"))
     click.echo(f"wrote {output}", err=True)
 
-
-def _floats(assignments: dict[str, str]) -> dict[str, float]:
-    out = {}
-    for name, value in assignments.items():
-        try:
-            out[name] = float(value)
-        except ValueError:
-            raise ConfigError(f"--set {name}={value!r}: the value must be a number") from None
-    return out
