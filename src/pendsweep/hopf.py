@@ -71,7 +71,7 @@ from .results import ResultStore, config_hash
 from .status import Status
 
 METHODS = ("analytic", "floquet", "simulate")
-#: Envelope [rad] up to which the kicked pendulum is treated as linear.
+#: Envelope [rad] up to which the kicked pendulum is treated as linear (or 4 kicks, if larger).
 LINEAR_LIMIT = 0.1
 KEY_COLUMNS = ["mass_point", "point", "method"]
 #: Columns of a Hopf scan result, in order.
@@ -182,7 +182,7 @@ def kicked_records(backend, params: ModelParams, kick: float, settle_periods: in
     return run.records, run.status
 
 
-def envelope_growth_rate(records: np.ndarray, omega_p: float, linear_limit: float = LINEAR_LIMIT) -> float:
+def envelope_growth_rate(records: np.ndarray, omega_p: float, linear_limit: float) -> float:
     """Growth rate [1/period] of the kicked pendulum's envelope, two-multiplier fit.
 
     The stroboscopic pendulum state ``x_k = (theta_k, thetadot_k / omega_p)``
@@ -231,7 +231,7 @@ def hopf_simulate(
         records, status = kicked_records(backend, params.replace(alpha=alpha), kick, settle_periods, periods)
         if status is not Status.OK:
             return math.nan, status
-        rate = envelope_growth_rate(records, params.omega_p)
+        rate = envelope_growth_rate(records, params.omega_p, max(LINEAR_LIMIT, 4.0 * kick))
         at_rest = records[-1, 1] < ENCODER_RESOLUTION
         return (min(rate, 0.0) if at_rest else rate), status
 
