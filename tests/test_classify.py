@@ -2,6 +2,8 @@
 
 import math
 
+import matplotlib.legend
+
 import numpy as np
 import pytest
 
@@ -153,3 +155,19 @@ def test_sweep_rows_carry_one_motion_per_unit():
     per_unit = df.groupby("point")["motion"].agg(["nunique", "first"])
     assert (per_unit["nunique"] == 1).all()
     assert list(per_unit["first"]) == ["semi-trivial", "periodic-2", "rotating"]
+
+
+def test_bifurcation_plot_shades_motion_bands():
+    import matplotlib.pyplot as plt
+
+    from pendsweep.plotting import draw_bifurcation
+    from pendsweep.sweep import sweep_metadata
+
+    config = SweepConfig(parameter="alpha", values=(5.0, 30.0, 40.0), model={"fe": 2.5}, mode="fresh",
+                         transient_periods=100, record_periods=20)
+    fig, ax = plt.subplots()
+    draw_bifurcation(ax, [(run_sweep(config), sweep_metadata(config))])
+    legends = [child for child in ax.get_children() if isinstance(child, matplotlib.legend.Legend)]
+    motion_legend = next(lg for lg in legends if lg.get_title().get_text() == "motion")
+    assert [t.get_text() for t in motion_legend.get_texts()] == ["semi-trivial", "periodic", "rotating"]
+    plt.close(fig)

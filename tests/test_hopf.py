@@ -148,3 +148,9 @@ def test_cli_bad_input_exits_2(tmp_path, args):
     res = CliRunner().invoke(main, ["hopf", *args, "-o", str(tmp_path / "h.parquet"), "--no-progress"])
     assert res.exit_code == 2
     assert "Traceback" not in res.output
+
+
+def test_hopf_figures_quick(tmp_path):
+    res = CliRunner().invoke(main, ["figures", "fig10a", "fig10b", "coexistence", "--quick", "--out", str(tmp_path)])
+    assert res.exit_code == 0, res.output
+    assert {p.name for p in tmp_path.glob("*.png")} == {"fig10a-quick.png", "fig10b-quick.png", "coexistence-quick.png"}

@@ -60,6 +60,7 @@ from typing import Callable
 import numpy as np
 
 from .backends import PointRun
+from .kernels._layout import REC_ROTATIONS, REC_THETA_ABSMAX, REC_THETADOT_SEC, REC_Y_ABSMAX, REC_Y_SEC
 from .params import ENCODER_RESOLUTION, ModelParams
 from .status import Status
 
@@ -84,7 +85,7 @@ CURVE_ROUGHNESS = 0.1
 #: Closed-curve test: largest angular gap between neighbours [rad].
 CURVE_MAX_GAP = math.pi / 2
 
-_SEC = slice(2, 6)  # record columns y_sec, ydot_sec, theta_sec, thetadot_sec
+_SEC = slice(REC_Y_SEC, REC_THETADOT_SEC + 1)  # record columns y_sec, ydot_sec, theta_sec, thetadot_sec
 _THETA = 2
 
 
@@ -119,7 +120,7 @@ class Evidence:
 
 def section_scales(records: np.ndarray, params: ModelParams) -> np.ndarray:
     """Divisors ``(Y, w_e Y, 1, w_p)`` that make the section dimensionless."""
-    Y = float(np.nanmax(records[:, 6])) or 1.0
+    Y = float(np.nanmax(records[:, REC_Y_ABSMAX])) or 1.0
     return np.array([Y, params.omega_e * Y, 1.0, params.omega_p])
 
 
@@ -239,13 +240,13 @@ def classify_records(
     """
     if status is not Status.OK or not np.isfinite(records).all():
         return Motion("n/a")
-    if records[:, 1].max() < ENCODER_RESOLUTION:
+    if records[:, REC_THETA_ABSMAX].max() < ENCODER_RESOLUTION:
         return Motion("semi-trivial")
-    rotating = bool(np.any(records[:, 7] != 0))
+    rotating = bool(np.any(records[:, REC_ROTATIONS] != 0))
     n = section_period(records[:, _SEC], scales)
     if n:
         return Motion("rotating" if rotating else f"periodic-{n}", n)
-    if evidence is None or records[-1, 1] < ENCODER_RESOLUTION:
+    if evidence is None or records[-1, REC_THETA_ABSMAX] < ENCODER_RESOLUTION:
         return Motion("transient")  # undecidable here, or still coming to rest
     ev = evidence()
     lle, err = lyapunov_estimate(ev.log_stretch)
@@ -268,7 +269,7 @@ def backend_evidence(backend, params: ModelParams, run: PointRun, scales: np.nda
 
     def advance(state: np.ndarray) -> tuple[np.ndarray, float]:
         one = backend.run_point(params, state, 0, 1)
-        return one.state, float(one.records[0, 1])
+        return one.state, float(one.records[0, REC_THETA_ABSMAX])
 
     start = backend.initial_state(params, *run.records[0, _SEC])
     periods = max(run.records.shape[0], LYAP_MIN_PERIODS)

@@ -65,6 +65,8 @@ from scipy.optimize import brentq
 from ._version import __version__
 from .backends import make_backend
 from .errors import ConfigError
+from .kernels import N_RECORD_COLUMNS
+from .kernels._layout import REC_ROTATIONS, REC_THETA_ABSMAX, REC_THETA_SEC, REC_THETADOT_SEC
 from .kernels._mathieu import mathieu_monodromy
 from .params import ENCODER_RESOLUTION, ModelParams, check_value
 from .results import ResultStore, config_hash
@@ -168,14 +170,14 @@ def kicked_records(backend, params: ModelParams, kick: float, settle_periods: in
     -------
     records : float64[periods, 8]
         Per-period records after the kick (``pendsweep.kernels.RECORD_COLUMNS``:
-        the envelope max|theta| is column 1, the section theta, thetadot columns 4, 5).
+        the envelope is ``theta_absmax``, the section ``theta_sec, thetadot_sec``).
     status : Status
     """
     Y = semi_trivial_response(params)
     state = backend.initial_state(params, Y.imag, params.omega_e * Y.real, 0.0, 0.0)
     settle = backend.run_point(params, state, settle_periods, 1)
     if settle.status is not Status.OK:
-        return np.full((periods, 8), np.nan), settle.status
+        return np.full((periods, N_RECORD_COLUMNS), np.nan), settle.status
     state = settle.state.copy()
     state[2] += kick
     run = backend.run_point(params, state, 0, periods)
@@ -193,11 +195,11 @@ def envelope_growth_rate(records: np.ndarray, omega_p: float, linear_limit: floa
     (``log`` of the largest Floquet multiplier modulus). ``inf`` when the
     pendulum rotates.
     """
-    if np.nansum(np.abs(records[:, 7])) > 0:
+    if np.nansum(np.abs(records[:, REC_ROTATIONS])) > 0:
         return math.inf
-    big = np.flatnonzero(records[:, 1] > linear_limit)
+    big = np.flatnonzero(records[:, REC_THETA_ABSMAX] > linear_limit)
     n = max(3, int(big[0]) if big.size else records.shape[0])
-    x = np.vstack([records[:n, 4], records[:n, 5] / omega_p])
+    x = np.vstack([records[:n, REC_THETA_SEC], records[:n, REC_THETADOT_SEC] / omega_p])
     A = np.linalg.lstsq(x[:, :-1].T, x[:, 1:].T, rcond=None)[0].T
     return float(np.log(np.abs(np.linalg.eigvals(A)).max()))
 
@@ -232,11 +234,11 @@ def hopf_simulate(
         if status is not Status.OK:
             return math.nan, status
         rate = envelope_growth_rate(records, params.omega_p, max(LINEAR_LIMIT, 4.0 * kick))
-        at_rest = records[-1, 1] < ENCODER_RESOLUTION
+        at_rest = records[-1, REC_THETA_ABSMAX] < ENCODER_RESOLUTION
         return (min(rate, 0.0) if at_rest else rate), status
 
     lo, g_lo = 0.0, math.nan
-    hi = 1.25 * alpha_hopf_analytic(params.replace(alpha=1.0)) or 1.0
+    hi = 1.25 * alpha_hopf_analytic(params) or 1.0
     while True:
         g_hi, status = growth(hi)
         if status is not Status.OK:

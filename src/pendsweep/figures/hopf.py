@@ -85,8 +85,8 @@ def fig10b(outdir: Path, quick: bool) -> list[Path]:
     ax.set_xlabel(r"$\hat\omega = \omega_e / (2\omega_p)$")
     ax.set_ylabel(r"$\alpha_H$ [N]")
     ax.set_ylim(0, 1.05 * sim.alpha_H.max())
-    ax.set_title(f"Fig. 10(b): Hopf boundary for four masses (stars: simulated protocol, Table IV damping, kick "
-                 f"{BIG_KICK:g} rad; lines: Eq. (12)); C = 20 kg/s, K = 1910 N/m", fontsize=8)
+    ax.set_title(f"Fig. 10(b): Hopf boundary for four masses, C = 20 kg/s, K = 1910 N/m\n"
+                 f"stars: simulated protocol, Table IV damping, kick {BIG_KICK:g} rad; lines: Eq. (12)", fontsize=8)
     ax.legend(fontsize=7)
     ax.grid(alpha=0.3)
     return _save(fig, outdir / f"fig10b{'-quick' if quick else ''}.png")
@@ -112,8 +112,8 @@ def coexistence(outdir: Path, quick: bool) -> list[Path]:
     fig, ax = plt.subplots(figsize=(8, 5), constrained_layout=True)
     draw_bifurcation(ax, results, "theta_peak")
     ax.set_title(
-        f"Fig. 11(a) section A (fe = {FIG11A.fe:g} Hz, emulated, noiseless): continuation up/down, fresh starts "
-        r"from $\theta$ = 0.1 rad, seeded multistarts; strips: motion per branch",
+        f"Fig. 11(a) section A (fe = {FIG11A.fe:g} Hz, emulated, noiseless): continuation up/down,\n"
+        r"fresh starts from $\theta$ = 0.1 rad, seeded multistarts; strips: motion per branch",
         fontsize=8,
     )
     return _save(fig, outdir / f"coexistence{'-quick' if quick else ''}.png")
