@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import click
@@ -38,7 +39,7 @@ def parse_values(text: str, what: str) -> tuple[float, ...]:
               help="Methods, comma separated: analytic (Eq. 12), floquet (Mathieu monodromy), simulate (kick + bisection).")
 @click.option("--backend", type=click.Choice(sorted(BACKENDS)), default="emulated", show_default=True,
               help="Backend of the simulate method.")
-@click.option("--backend-option", "backend_options", multiple=True, metavar="KEY=VALUE",
+@click.option("-B", "--backend-option", "backend_options", multiple=True, metavar="KEY=VALUE",
               help="Backend option (repeatable), e.g. dt=0.001 [s].")
 @click.option("--set", "model", multiple=True, metavar="NAME=VALUE",
               help="Model parameter override in SI units (repeatable), e.g. --set b1=0 --set C=20.")
@@ -50,9 +51,9 @@ def parse_values(text: str, what: str) -> tuple[float, ...]:
               help="Largest forcing amplitude searched [N].")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
               default=Path("results/hopf.parquet"), show_default=True, help="Results parquet file (resumable).")
-@click.option("-j", "--jobs", type=int, default=1, show_default=True, help="Parallel workers (-1: all cores).")
+@click.option("-j", "--jobs", type=int, default=-1, show_default=True, help="Parallel workers (-1: all cores).")
 @click.option("--overwrite", is_flag=True, help="Discard earlier results at --output instead of resuming.")
-@click.option("--progress/--no-progress", default=True, show_default=True, help="Progress bar on stderr.")
+@click.option("--progress/--no-progress", default=None, help="Progress bar on stderr (default: when stderr is a terminal).")
 def hopf(what, masses, methods, backend, backend_options, model, kick, periods, tol, alpha_max,
          output, jobs, overwrite, progress):
     """Hopf boundary alpha_H [N] of the semi-trivial solution (Fig. 10).
@@ -71,6 +72,7 @@ def hopf(what, masses, methods, backend, backend_options, model, kick, periods, 
         backend_options=_key_value(backend_options, "--backend-option"),
         kick=kick, periods=periods, tol=tol, alpha_max=alpha_max,
     )
+    progress = sys.stderr.isatty() if progress is None else progress
     df = run_hopf(config, output, n_jobs=jobs, progress=progress, overwrite=overwrite)
     shown = ["omega_hat", "fe", "M", "method", "alpha_H", "status", "multiplier", "growth_above", "kick", "runs"]
     click.echo(df[shown].to_string(index=False, float_format=lambda v: f"{v:.5g}"))
