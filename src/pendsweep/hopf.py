@@ -53,7 +53,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterable
@@ -62,14 +61,13 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import brentq
 
-from ._version import __version__
 from .backends import make_backend
 from .errors import ConfigError
 from .kernels import N_RECORD_COLUMNS
 from .kernels._layout import REC_ROTATIONS, REC_THETA_ABSMAX, REC_THETA_SEC, REC_THETADOT_SEC
 from .kernels._mathieu import mathieu_monodromy
 from .params import ENCODER_RESOLUTION, ModelParams, check_value
-from .results import ResultStore, config_hash
+from .results import ResultStore, run_metadata
 from .status import Status
 
 METHODS = ("analytic", "floquet", "simulate")
@@ -387,15 +385,7 @@ def hopf_point(config: HopfConfig, mass_point: int, point: int, method: str, bac
 
 
 def hopf_metadata(config: HopfConfig) -> dict[str, Any]:
-    cfg = config.to_dict()
-    return {
-        "kind": "hopf",
-        "config": cfg,
-        "config_hash": config_hash(cfg),
-        "package_version": __version__,
-        "backend": config.backend,
-        "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
-    }
+    return run_metadata("hopf", config.to_dict(), backend=config.backend)
 
 
 def run_hopf(

@@ -35,6 +35,20 @@ def config_hash(config: dict[str, Any]) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
+def run_metadata(kind: str, config: dict[str, Any], **extra: Any) -> dict[str, Any]:
+    """Provenance stored with a result file: kind, resolved config, its hash, version, time."""
+    from ._version import __version__
+
+    return {
+        "kind": kind,
+        "config": config,
+        "config_hash": config_hash(config),
+        "package_version": __version__,
+        **extra,
+        "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+    }
+
+
 def check_writable(path: Path) -> None:
     """Raise :class:`ResultsError` unless a file can be created at ``path``."""
     path = Path(path)

@@ -31,7 +31,6 @@ import dataclasses
 import math
 import queue
 import threading
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterable, Iterator
@@ -40,13 +39,12 @@ import numpy as np
 import pandas as pd
 from joblib import Parallel, delayed
 
-from ._version import __version__
 from .backends import PointRun, make_backend
 from .classify import classify_run
 from .errors import ConfigError
 from .kernels import RECORD_COLUMNS
 from .params import ENCODER_RESOLUTION, PARAM_SPECS, ModelParams, check_value
-from .results import ResultStore, config_hash
+from .results import ResultStore, run_metadata
 from .status import Status
 
 MODES = ("continue", "fresh", "multistart")
@@ -334,16 +332,7 @@ def _stream(tasks: list[Callable[[], Iterable[Any]]], n_jobs: int) -> Iterator[A
 
 
 def sweep_metadata(config: SweepConfig) -> dict[str, Any]:
-    cfg = config.to_dict()
-    return {
-        "kind": "sweep",
-        "config": cfg,
-        "config_hash": config_hash(cfg),
-        "package_version": __version__,
-        "backend": config.backend,
-        "seed": config.seed,
-        "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
-    }
+    return run_metadata("sweep", config.to_dict(), backend=config.backend, seed=config.seed)
 
 
 def run_sweep(
