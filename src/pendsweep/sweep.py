@@ -30,7 +30,6 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterable, Iterator
@@ -38,13 +37,13 @@ from typing import Any, Callable, Iterable, Iterator
 import numpy as np
 import pandas as pd
 
-from ._version import __version__
 from .backends import PointRun, make_backend
+from .classify import classify_run
 from .errors import ConfigError
 from .executors import Executor, LocalExecutor
 from .kernels import RECORD_COLUMNS
 from .params import ENCODER_RESOLUTION, PARAM_SPECS, ModelParams, check_value
-from .results import ResultStore, config_hash
+from .results import ResultStore, run_metadata
 from .status import Status
 
 MODES = ("continue", "fresh", "multistart")
@@ -229,6 +228,7 @@ class PointResult:
     value: float
     run: PointRun
     kicked: bool
+    motion: str = ""
 
     @property
     def key(self) -> str:
@@ -247,6 +247,7 @@ def result_rows(config: SweepConfig, r: PointResult) -> pd.DataFrame:
     df.insert(4, "period", np.arange(n, dtype=np.int64))
     df["kicked"] = r.kicked
     df["status"] = r.run.status.value
+    df["motion"] = r.motion
     return df
 
 
@@ -270,7 +271,7 @@ def _continue_branch(config, backend, direction, indices, resume) -> Iterator[Po
             state[2] += config.kick
             kicked = True
         run = backend.run_point(params, state, config.transient_periods, config.record_periods)
-        yield PointResult(direction, i, 0, config.values[i], run, kicked)
+        yield PointResult(direction, i, 0, config.values[i], run, kicked, classify_run(backend, params, run).label)
         ok = run.status is Status.OK
         state = run.state if ok else None
         kick_next = ok and float(np.nanmax(run.records[:, 1])) < config.rest_threshold
@@ -286,7 +287,7 @@ def _independent_point(config, backend, i, starts_done) -> list[PointResult]:
         run = backend.run_point(
             params, backend.initial_state(params, *ic), config.transient_periods, config.record_periods
         )
-        out.append(PointResult("none", i, s, config.values[i], run, False))
+        out.append(PointResult("none", i, s, config.values[i], run, False, classify_run(backend, params, run).label))
     return out
 
 
@@ -298,7 +299,10 @@ def _batched_units(config, backend, units, threads) -> list[PointResult]:
         ic = multistart_initials(config, i)[s] if config.mode == "multistart" else config.initial
         states.append(backend.initial_state(params[-1], *ic))
     runs = backend.run_points(params, np.array(states), config.transient_periods, config.record_periods, threads)
-    return [PointResult("none", i, s, config.values[i], run, False) for (i, s), run in zip(units, runs)]
+    return [
+        PointResult("none", i, s, config.values[i], run, False, classify_run(backend, q, run).label)
+        for (i, s), q, run in zip(units, params, runs)
+    ]
 
 
 def _independent_tasks(config, backend, resume, n_jobs, task_points) -> tuple[list[Callable], int]:
@@ -323,16 +327,7 @@ def _independent_tasks(config, backend, resume, n_jobs, task_points) -> tuple[li
 
 
 def sweep_metadata(config: SweepConfig) -> dict[str, Any]:
-    cfg = config.to_dict()
-    return {
-        "kind": "sweep",
-        "config": cfg,
-        "config_hash": config_hash(cfg),
-        "package_version": __version__,
-        "backend": config.backend,
-        "seed": config.seed,
-        "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
-    }
+    return run_metadata("sweep", config.to_dict(), backend=config.backend, seed=config.seed)
 
 
 def run_sweep(
