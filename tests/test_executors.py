@@ -107,3 +107,11 @@ def test_cli_sweep_on_the_cluster(client, tmp_path, monkeypatch):
     monkeypatch.delenv(SCHEDULER_ENV)
     bad = runner.invoke(main, [*common, "--executor", "dask", "-o", str(tmp_path / "x.parquet")])
     assert bad.exit_code == 2 and "needs a scheduler" in bad.output
+
+
+def test_hopf_scan_on_the_cluster(client):
+    from pendsweep.hopf import HopfConfig, run_hopf
+
+    config = HopfConfig(omega_hat=(0.95, 1.0, 1.05), masses=(10.9,), methods=("analytic", "floquet"))
+    remote = run_hopf(config, executor=DaskExecutor(client))
+    pd.testing.assert_frame_equal(remote, run_hopf(config), check_exact=True)
