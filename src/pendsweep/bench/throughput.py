@@ -18,6 +18,7 @@ end, throughput against batch size and thread count (plotted to
 from __future__ import annotations
 
 import math
+import os
 import re
 import time
 from pathlib import Path
@@ -28,6 +29,7 @@ import numpy as np
 
 from ..backends import make_backend
 from ..batch import run_batch
+from ..kernels import wrap_angle
 from ..params import TABLE_IV, ModelParams
 from . import benchmark
 from .core import solve_ivp_point
@@ -122,7 +124,7 @@ def jax_rk4_factory():
 
     def run(params, states, n_steps, dt):
         cols = jnp.asarray(np.stack(_columns(params)))
-        return np.asarray(batched(cols, jnp.asarray(states), n_steps, dt).block_until_ready())
+        return np.array(batched(cols, jnp.asarray(states), n_steps, dt).block_until_ready())
 
     return run
 
@@ -187,7 +189,7 @@ def _scaling(quick: bool) -> dict:
     sizes = [1, 4, 16, 64, 256] if quick else [1, 2, 4, 8, 16, 32, 64, 128, 256, 512, 1024, 2048, 4096]
     threads = [t for t in (1, 2) if t <= nb.config.NUMBA_NUM_THREADS]
     budget = 2e5 if quick else 3e6  # point-steps per measurement
-    out: dict = {"batch_sizes": sizes}
+    out: dict = {"batch_sizes": sizes, "load_average": os.getloadavg()[0]}
     base = peer_points(64, 64)
     for t in threads:
         rates = []
@@ -209,7 +211,7 @@ def _plot(scaling: dict, path: Path) -> None:
 
     fig, axes = plt.subplots(1, 2, figsize=(10, 4))
     sizes = scaling["batch_sizes"]
-    keys = [k for k in scaling if k.startswith("point_steps_per_s_threads_")]
+    keys = [k for k in scaling if k.startswith("point_steps_per_s_threads_")]  # one curve per thread count
     for k in keys:
         t = int(k.rsplit("_", 1)[1])
         axes[0].loglog(sizes, scaling[k], "o-", label=f"{t} thread{'s' if t > 1 else ''}")
@@ -226,7 +228,7 @@ def _plot(scaling: dict, path: Path) -> None:
         axes[1].legend()
     axes[1].set_xlabel("numba threads")
     axes[1].set_ylabel(f"point-steps per second (batch {sizes[-1]})")
-    axes[1].set_title("Throughput vs threads")
+    axes[1].set_title(f"Throughput vs threads (load average {scaling['load_average']:.1f} on {os.cpu_count()} cores)")
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=150)
@@ -275,7 +277,7 @@ def bench_throughput(quick: bool) -> dict:
         rows.append(_row(f"JAX {jax.__version__} vmap + lax.scan RK4, float64, CPU", times, n * horizon * steps, threads,
                          horizon, "XLA's own thread pool; CPU time of all its threads"))
         z = jax_run(params, states, steps, dt)
-        z[:, 2] -= 2 * np.pi * np.ceil((z[:, 2] - np.pi) / (2 * np.pi))  # the kernels rewrap theta
+        z[:, 2] = [wrap_angle(v) for v in z[:, 2]]  # the kernels rewrap theta every period
         agreement["jax_rk4_vs_batched_final_state_max_abs_diff_after_1_period"] = float(
             np.max(np.abs(z - run_batch(params, states, 0, 1).states))
         )
@@ -294,6 +296,8 @@ def bench_throughput(quick: bool) -> dict:
     by_name = {r["peer"].split(" (")[0].split(",")[0]: r for r in rows}
 
     result: dict = {
+        "load_average_1min_at_start": os.getloadavg()[0],
+        "cpu_count": os.cpu_count(),
         "points": n,
         "steps_per_period": steps,
         "numba_threads": threads,
