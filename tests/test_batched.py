@@ -191,3 +191,13 @@ def test_fresh_and_multistart_sweeps_use_the_batched_kernel(monkeypatch):
     calls.clear()
     run_sweep(SweepConfig("alpha", (10.0, 20.0), transient_periods=5, record_periods=2))  # continue mode
     assert calls == []
+
+
+def test_bench_peers_integrate_the_same_equations():
+    """The numpy RK4 peer of `make bench` lands on the batched kernel's state after one period."""
+    from pendsweep.bench.throughput import numpy_rk4, peer_points
+
+    params = peer_points(4, 2)
+    states = np.tile([0.0, 0.0, 0.1, 0.0], (len(params), 1))
+    peer = numpy_rk4(params, states, 400, 1.0 / (2.5 * 400))
+    np.testing.assert_allclose(peer, run_batch(params, states, 0, 1).states, rtol=0, atol=1e-13)

@@ -65,60 +65,56 @@ def _columns(params: list[ModelParams]) -> tuple[np.ndarray, ...]:
     return (*p, np.array([q.alpha for q in params]), np.array([q.omega_e for q in params]))
 
 
-def numpy_rk4(params: list[ModelParams], states: np.ndarray, n_steps: int, dt: float) -> np.ndarray:
-    """Plain numpy RK4 of Eq. (11), vectorised across points (signum held per step)."""
-    m, l, b1, b2, b3, g, M, C, K, k3, alpha, w = _columns(params)
-    z = states.T.copy()
+def rk4_step_for(xp):
+    """One RK4 step of Eq. (11) written against an array module (numpy or jax.numpy).
 
-    def rhs(z, force, sg):
+    ``step(cols, z, t, dt)``: ``cols`` are the per-point columns of
+    :func:`_columns`, ``z`` the stacked state ``(4, ...)``; the signum of
+    thetadot is held over the step, the forcing is ``alpha sin(omega_e t)``.
+    """
+
+    def rhs(cols, z, force, sg):
+        m, l, b1, b2, b3, g, M, C, K, k3 = cols[:10]
         y, yd, th, thd = z
-        s, c = np.sin(th), np.cos(th)
+        s, c = xp.sin(th), xp.cos(th)
         fd = b1 * sg + b2 * thd + b3 * thd * thd * sg
         den = M + m * c * c
         common = force - C * yd - K * y - k3 * y**3 - m * l * thd * thd * c + s * fd / l
-        return np.array([yd, (common + m * g * s * s) / den, thd, -(s / l) * (common + (M + m) * g) / den - fd / (m * l * l)])
+        return xp.stack([yd, (common + m * g * s * s) / den, thd, -(s / l) * (common + (M + m) * g) / den - fd / (m * l * l)])
 
+    def step(cols, z, t, dt):
+        alpha, w = cols[10], cols[11]
+        sg = xp.sign(z[3])
+        fh = alpha * xp.sin(w * (t + 0.5 * dt))
+        k1 = rhs(cols, z, alpha * xp.sin(w * t), sg)
+        k2 = rhs(cols, z + 0.5 * dt * k1, fh, sg)
+        k3 = rhs(cols, z + 0.5 * dt * k2, fh, sg)
+        k4 = rhs(cols, z + dt * k3, alpha * xp.sin(w * (t + dt)), sg)
+        return z + dt / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
+
+    return step
+
+
+def numpy_rk4(params: list[ModelParams], states: np.ndarray, n_steps: int, dt: float) -> np.ndarray:
+    """Plain numpy RK4 of Eq. (11), vectorised across points; returns the ``(n, 4)`` final states."""
+    cols = _columns(params)
+    step = rk4_step_for(np)
+    z = states.T.copy()
     for k in range(n_steps):
-        t = k * dt
-        sg = np.sign(z[3])
-        fh = alpha * np.sin(w * (t + 0.5 * dt))
-        k1 = rhs(z, alpha * np.sin(w * t), sg)
-        k2 = rhs(z + 0.5 * dt * k1, fh, sg)
-        k3_ = rhs(z + 0.5 * dt * k2, fh, sg)
-        k4 = rhs(z + dt * k3_, alpha * np.sin(w * (t + dt)), sg)
-        z = z + dt / 6.0 * (k1 + 2 * k2 + 2 * k3_ + k4)
+        z = step(cols, z, k * dt, dt)
     return z.T
 
 
 def jax_rk4_factory():
-    """A jitted ``f(columns, states, n_steps, dt)``: JAX vmap over points of a lax.scan RK4 (float64)."""
+    """A jitted ``f(params, states, n_steps, dt)``: JAX vmap over points of a lax.scan RK4 (float64)."""
     import jax
     import jax.numpy as jnp
 
     jax.config.update("jax_enable_x64", True)
+    step = rk4_step_for(jnp)
 
     def point(cols, z0, n_steps, dt):
-        m, l, b1, b2, b3, g, M, C, K, k3, alpha, w = cols
-
-        def rhs(z, force, sg):
-            y, yd, th, thd = z
-            s, c = jnp.sin(th), jnp.cos(th)
-            fd = b1 * sg + b2 * thd + b3 * thd * thd * sg
-            den = M + m * c * c
-            common = force - C * yd - K * y - k3 * y**3 - m * l * thd * thd * c + s * fd / l
-            return jnp.stack([yd, (common + m * g * s * s) / den, thd, -(s / l) * (common + (M + m) * g) / den - fd / (m * l * l)])
-
-        def step(z, k):
-            t = k * dt
-            sg = jnp.sign(z[3])
-            fh = alpha * jnp.sin(w * (t + 0.5 * dt))
-            k1 = rhs(z, alpha * jnp.sin(w * t), sg)
-            k2 = rhs(z + 0.5 * dt * k1, fh, sg)
-            k3_ = rhs(z + 0.5 * dt * k2, fh, sg)
-            k4 = rhs(z + dt * k3_, alpha * jnp.sin(w * (t + dt)), sg)
-            return z + dt / 6.0 * (k1 + 2 * k2 + 2 * k3_ + k4), None
-
-        return jax.lax.scan(step, z0, jnp.arange(n_steps))[0]
+        return jax.lax.scan(lambda z, k: (step(cols, z, k * dt, dt), None), z0, jnp.arange(n_steps))[0]
 
     batched = jax.jit(jax.vmap(point, in_axes=(1, 0, None, None)), static_argnums=(2,))
 
