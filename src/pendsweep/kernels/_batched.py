@@ -5,12 +5,14 @@ time in libm ``sin``/``cos``, which LLVM cannot vectorise. Here the state of
 a chunk of points lives in structure-of-arrays form and the innermost loop
 runs over points, so that LLVM turns one RK4 step of the whole chunk into
 AVX-512 code; ``sin``/``cos`` come from the branch-free
-:func:`~pendsweep.kernels._sincos.sincos_poly` and the forcing sine from a
-rotation recurrence, re-anchored to ``sin 0 = 0`` every forcing period.
-Each point keeps its own step, so points with different ``fe`` (and so
-different steps per period) share a chunk; a point that has finished or
-diverged is frozen by a select. Period ends are rare events handled by a
-scalar pass that fills the same records as the scalar kernel.
+:func:`~pendsweep.kernels._sincos.sincos_poly`. The forcing at the stage
+times is the scalar kernel's half-step table when all points of a chunk
+share their steps per period, and otherwise the exact phase of each step's
+start (``sincos_poly``) followed by two half-step rotations. Each point
+keeps its own step, so points with different ``fe`` (and so different steps
+per period) share a chunk; a point that has finished or diverged is frozen
+by a select. Period ends are rare events handled by a scalar pass that fills
+the same records as the scalar kernel.
 
 Chunks run in parallel (``prange``). A point's result depends on the other
 points of its chunk only through whether they all share its steps per period
@@ -24,6 +26,7 @@ import numpy as np
 
 from ._emulated import forcing_table, rk4_step
 from ._layout import (
+    N_PARAMS,
     P_B1,
     P_B2,
     P_B3,
@@ -34,7 +37,6 @@ from ._layout import (
     P_L,
     P_M,
     P_M_PEND,
-    N_PARAMS,
     REC_THETA_ABSMAX,
     REC_THETA_PEAK,
     REC_Y_ABSMAX,
