@@ -8,4 +8,6 @@ become a one-line message and exit status 2, never a traceback.
 from ._app import main
 
 
+from . import _substructured  # noqa: E402,F401  (trace, sync)
+
 __all__ = ["main"]
