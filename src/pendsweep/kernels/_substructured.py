@@ -152,6 +152,26 @@ def hermite_at(cmd, cmdd, j, s, dt):
     return hermite(cmd[j], cmdd[j], cmd[j - 1], cmdd[j - 1], s, dt)
 
 
+@nb.njit(cache=True, nogil=True, inline="always")
+def quantise(value, step):
+    """``value`` rounded to a multiple of ``step`` (unchanged when ``step`` is 0)."""
+    return step * round(value / step) if step > 0.0 else value
+
+
+@nb.njit(cache=True, nogil=True)
+def trip(row, records, r_idx, ys, yds, th, thd, enc_res):
+    """Fill the record rows from ``r_idx`` on with the period in which the loop tripped.
+
+    The values are finite (the trip happens at the stroke limit at the latest):
+    the running extremes of the interrupted period and the state at the trip.
+    """
+    th_x = quantise(th, enc_res)
+    record_sample(row, ys, th_x)
+    record_close(row, ys, yds, th_x, thd, 0)
+    for r in range(max(r_idx, 0), records.shape[0]):
+        records[r, :] = row
+
+
 @nb.njit(cache=True, nogil=True)
 def substructured_loop(
     state,
@@ -275,15 +295,14 @@ def substructured_loop(
     tracing = trace.shape[0] > 0
     total = transient_periods + n_rec
     hf_run = 0
+    row = np.empty(N_RECORD_COLUMNS)  # the current period's running record
     status = STATUS_OK
     done = 0
     tick = 0
     for period in range(total):
         r_idx = period - transient_periods
         recording = r_idx >= 0
-        if recording:
-            row = records[r_idx]
-            record_open(row)
+        record_open(row)
         sum_x2 = 0.0
         sum_h2 = 0.0
         for jstep in range(n):
@@ -302,8 +321,8 @@ def substructured_loop(
                 + harmonics[1] * math.sin(5.0 * ph)
                 + harmonics[2] * math.sin(7.0 * ph)
             )
-            th_x = enc_res * round(th / enc_res) if enc_res > 0.0 else th
-            x_meas = (lvdt_res * round(x / lvdt_res) if lvdt_res > 0.0 else x) + noise_x[tick]
+            th_x = quantise(th, enc_res)
+            x_meas = quantise(x, lvdt_res) + noise_x[tick]
             # b. force path
             f_fb = f_meas
             if use_filter:
@@ -321,8 +340,7 @@ def substructured_loop(
                         acc += w_force[i] * fh[i]
                     f_fb = acc
             # outputs at t_k
-            if recording:
-                record_sample(row, ys, th_x)
+            record_sample(row, ys, th_x)
             if tracing and (period * n + jstep) % stride == 0:
                 ti = (period * n + jstep) // stride
                 tr = trace[ti]
@@ -439,10 +457,13 @@ def substructured_loop(
                 break
         if status == STATUS_OK and not (math.isfinite(th) and math.isfinite(thd)):
             status = STATUS_DIVERGED
-        if status != STATUS_OK:
-            if recording:
+        if status == STATUS_UNSTABLE:
+            trip(row, records, r_idx, ys, yds, th, thd, enc_res)
+            break
+        if status == STATUS_DIVERGED:
+            for r in range(max(r_idx, 0), n_rec):
                 for c_ in range(N_RECORD_COLUMNS):
-                    row[c_] = np.nan
+                    records[r, c_] = np.nan
             break
         # high-frequency content: rms of x'' seen at the controller rate versus
         # what a pure forcing-frequency motion of the same rms would give
@@ -454,18 +475,17 @@ def substructured_loop(
             hf_run = 0
         if hf_run >= HF_PERIODS:
             status = STATUS_UNSTABLE
-            if recording:
-                for c_ in range(N_RECORD_COLUMNS):
-                    row[c_] = np.nan
+            trip(row, records, r_idx, ys, yds, th, thd, enc_res)
             break
         turns = 0
         if not tracing:
             turns = wrap_index(th)
             th -= TWO_PI * turns
         if recording:
-            th_x = enc_res * round(th / enc_res) if enc_res > 0.0 else th
+            th_x = quantise(th, enc_res)
             record_sample(row, ys, th_x)
             record_close(row, ys, yds, th_x, thd, turns)
+            records[r_idx, :] = row
         done = period + 1
     state[0], state[1], state[2], state[3], state[4], state[5] = ys, yds, th, thd, x, xd
     state[S_TICKS] += tick
