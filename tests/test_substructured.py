@@ -206,3 +206,11 @@ def test_kick_moves_the_true_pendulum():
     assert np.all(b.run_point(FIG9_PO, state, 5, 2).records[:, 1] == 0.0)
     state[2] += 0.1
     assert np.all(b.run_point(FIG9_PO, state, 0, 1).records[:, 1] > 0.05)
+
+
+def test_sweep_seed_reaches_the_backend_noise():
+    base = dict(parameter="alpha", values=(5.0,), model=FIG9_PO.to_dict(), backend="substructured", transient_periods=2, record_periods=2)
+    assert SweepConfig(**base, seed=11).make_backend().seed == 11
+    assert SweepConfig(**base, seed=11, backend_options={"seed": 3}).make_backend().seed == 3
+    a, b = (run_sweep(SweepConfig(**base, seed=s)) for s in (1, 2))
+    assert not np.array_equal(a["y_sec"].to_numpy(), b["y_sec"].to_numpy())

@@ -37,4 +37,6 @@ def make_figures(names: list[str] | None, outdir: Path, quick: bool = False) -> 
     for name in names:
         written += FIGURES[name](outdir, quick)
     return written
+
+from . import core  # noqa: E402,F401  (registers figures)
 from . import hybrid  # noqa: E402,F401  (registers the hybrid-test figures)
