@@ -100,3 +100,15 @@ def test_sync_rejects_an_emulated_trace(tmp_path):
     res = runner.invoke(main, ["sync", str(out)])
     assert res.exit_code == 2 and "substructured" in res.output
     assert isinstance(read_trace(out)[0], pd.DataFrame)
+
+
+def test_hybrid_figures_quick(tmp_path):
+    from pendsweep.figures import make_figures
+
+    paths = make_figures(["fig9_hybrid", "fig11_hybrid", "fig12_sync"], tmp_path, quick=True)
+    assert all(p.stat().st_size > 0 for p in paths)
+    table = pd.read_csv(tmp_path / "table1_sync.csv")
+    assert set(table["motion"]) == {"PO", "CO"} and len(table) == 4
+    predicted = table[table["prediction"] != "none"]
+    assert (predicted["ratio_percent"] < 5.0).all()
+    assert (predicted["paper_ratio_percent"] == 3.9).all()
