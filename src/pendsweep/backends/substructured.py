@@ -130,9 +130,10 @@ class SubstructuredBackend:
     ``C2 = 10 kg/s``); the rig is the pendulum on the platform ``(M2, C2)``
     driven at the pivot by the actuator. Records hold ``y*`` and the encoder
     angle ``theta_x`` (quantised), as in Fig. 11; ``thetadot_sec`` is the true
-    rate. State: ``(y*, y*', theta, theta', x, x', ticks, x_k-1, x_k-2,``
-    command delay line, command slopes, ``y*`` history, filtered-force
-    history, filter registers ``)``; see the kernel module.
+    rate. State: ``(y*, y*', theta, theta', x, x', ticks, x_k-1, x_k-2,
+    x', x, theta' sin(theta) at the last load-cell sample,`` command delay
+    line, command slopes, ``y*`` history, filtered-force history, filter
+    registers ``)``; see the kernel module.
 
     Attributes
     ----------
@@ -290,7 +291,7 @@ class SubstructuredBackend:
         s = np.zeros(length)
         s[:6] = (y, ydot, theta, thetadot, y, ydot)
         s[7] = s[8] = y
-        s[9] = (params.M2 + params.m) * ydot + params.C2 * y + params.m * params.l * thetadot * math.sin(theta)
+        s[9:12] = (ydot, y, thetadot * math.sin(theta))
         s[o_cmd:o_cmdd] = y
         s[o_cmdd:o_yh] = ydot
         s[o_yh:o_fh] = y
