@@ -18,6 +18,7 @@ from pendsweep.errors import ConfigError
 from pendsweep.hybrid import run_trace
 from pendsweep.kernels import RECORD_COLUMNS
 from pendsweep.params import ENCODER_RESOLUTION, FIG9_PO, FIG11A
+from pendsweep.results import read_results
 from pendsweep.sweep import SweepConfig, run_sweep
 from pendsweep.sync import sync_ratio, xcorr_delay
 
@@ -93,7 +94,7 @@ def _critical_transport_delay(p, bandwidth=30.0, zeta=0.7) -> float:
     return min(taus)
 
 
-def test_delay_instability_is_a_status_not_a_crash():
+def test_delay_instability_is_a_status_not_a_crash(tmp_path):
     p = FIG9_PO
     # Subtract the hold (dt/2) the loop adds on top of the transport delay.
     critical = _critical_transport_delay(p) - 0.5e-3
@@ -108,7 +109,8 @@ def test_delay_instability_is_a_status_not_a_crash():
         backend_options={"predictor_order": -1, "transport_delay": 1.3 * critical},
         transient_periods=20, record_periods=5,
     )  # fmt: skip
-    df = run_sweep(config)
+    run_sweep(config, tmp_path / "unstable.parquet")
+    df, _ = read_results(tmp_path / "unstable.parquet")
     assert set(df["status"]) == {"unstable"}
     assert np.all(np.isfinite(df[list(RECORD_COLUMNS)].to_numpy()))
 

@@ -274,20 +274,12 @@ class SubstructuredBackend:
         """Length of the command delay line (covers the transport delay with margin)."""
         return int(math.ceil(1.1 * self.transport_delay / self.dt)) + 4
 
-    @property
-    def _n_pred(self) -> int:
-        return self.predictor_points
-
-    @property
-    def _n_sections(self) -> int:
-        return self.filter_order
-
     def state_length(self) -> int:
-        return state_offsets(self.n_cmd, self._n_pred, self._n_sections)[5]
+        return state_offsets(self.n_cmd, self.predictor_points, self.filter_order)[5]
 
     def initial_state(self, params, y, ydot, theta, thetadot) -> np.ndarray:
         """Rest of the loop consistent with ``y* = x = y`` (histories constant, filter empty)."""
-        o_cmd, o_cmdd, o_yh, o_fh, o_z, length = state_offsets(self.n_cmd, self._n_pred, self._n_sections)
+        o_cmd, o_cmdd, o_yh, o_fh, o_z, length = state_offsets(self.n_cmd, self.predictor_points, self.filter_order)
         s = np.zeros(length)
         s[:6] = (y, ydot, theta, thetadot, y, ydot)
         s[7] = s[8] = y
@@ -385,7 +377,8 @@ class SubstructuredBackend:
         Columns (SI): ``t, Fe, y`` (= y*), ``ydot, command`` (the held command
         ``c_k``), ``x, xdot`` (true actuator), ``x_meas`` (LVDT), ``theta``
         (encoder, theta_x), ``theta_true, thetadot, Fs`` (load cell), ``Fs_true``
-        (Eq. 4), ``F_fb`` (force fed to the model) and ``sync_error``
+        (the load cell without noise: Eq. (4) averaged over the last tick),
+        ``F_fb`` (force fed to the model) and ``sync_error``
         (``y* - x_meas``). Rows after an instability are dropped; the status is
         in ``df.attrs["status"]``.
         """
