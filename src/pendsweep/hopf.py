@@ -52,6 +52,7 @@ row.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -157,30 +158,50 @@ def hopf_floquet(params: ModelParams, steps: int = 200, alpha_max: float = 500.0
 
 
 # -- the simulated protocol -----------------------------------------------------
-def kicked_records(backend, params: ModelParams, kick: float, settle_periods: int, periods: int) -> tuple[np.ndarray, Status]:
-    """Kick the pendulum off the semi-trivial solution and record what follows.
+def kicked_records_many(
+    backend, params: list[ModelParams], kick: float, settle_periods: int, periods: int
+) -> tuple[np.ndarray, list[Status]]:
+    """Kick the pendulum off the semi-trivial solution and record what follows, for many points.
 
-    The one place the simulate method touches a backend (swap it for a
-    batched call to run many alphas at once). The oscillator starts on its
-    steady response, with the pendulum at rest, and runs ``settle_periods``
-    (to settle any backend-specific states); then ``theta += kick``.
+    The one place the simulate method touches a backend. The oscillator
+    starts on its steady response, with the pendulum at rest, and runs
+    ``settle_periods`` (to settle any backend-specific states); then
+    ``theta += kick``. A backend with a batched kernel (``run_points``, see
+    :func:`pendsweep.batch.run_batch`) integrates all points at once.
 
     Returns
     -------
-    records : float64[periods, 8]
+    records : float64[n, periods, 8]
         Per-period records after the kick (``pendsweep.kernels.RECORD_COLUMNS``:
         the envelope is ``theta_absmax``, the section ``theta_sec, thetadot_sec``).
-    status : Status
+    status : list of Status
     """
-    Y = semi_trivial_response(params)
-    state = backend.initial_state(params, Y.imag, params.omega_e * Y.real, 0.0, 0.0)
-    settle = backend.run_point(params, state, settle_periods, 1)
-    if settle.status is not Status.OK:
-        return np.full((periods, N_RECORD_COLUMNS), np.nan), settle.status
-    state = settle.state.copy()
-    state[2] += kick
-    run = backend.run_point(params, state, 0, periods)
-    return run.records, run.status
+
+    def run(ps, states, transient, record):
+        if hasattr(backend, "run_points"):
+            return backend.run_points(ps, np.asarray(states), transient, record)
+        return [backend.run_point(q, s, transient, record) for q, s in zip(ps, states)]
+
+    starts = []
+    for q in params:
+        Y = semi_trivial_response(q)
+        starts.append(backend.initial_state(q, Y.imag, q.omega_e * Y.real, 0.0, 0.0))
+    settled = run(params, starts, settle_periods, 1)
+    records = np.full((len(params), periods, N_RECORD_COLUMNS), np.nan)
+    status = [s.status for s in settled]
+    ok = [i for i, s in enumerate(settled) if s.status is Status.OK]
+    kicked = [settled[i].state.copy() for i in ok]
+    for state in kicked:
+        state[2] += kick
+    for i, r in zip(ok, run([params[i] for i in ok], kicked, 0, periods) if ok else []):
+        records[i], status[i] = r.records, r.status
+    return records, status
+
+
+def kicked_records(backend, params: ModelParams, kick: float, settle_periods: int, periods: int) -> tuple[np.ndarray, Status]:
+    """:func:`kicked_records_many` for one point: records ``(periods, 8)`` and status."""
+    records, status = kicked_records_many(backend, [params], kick, settle_periods, periods)
+    return records[0], status[0]
 
 
 def envelope_growth_rate(records: np.ndarray, omega_p: float, linear_limit: float) -> float:
@@ -224,22 +245,61 @@ def hopf_simulate(
     ``growth_below/above`` (growth rates at the bracket ends [1/period]),
     ``runs`` and ``status``.
     """
+    return hopf_simulate_many(
+        [params], backend, kick=kick, periods=periods, settle_periods=settle_periods, tol=tol, alpha_max=alpha_max
+    )[0]
+
+
+def hopf_simulate_many(
+    params: list[ModelParams],
+    backend,
+    *,
+    kick: float = 0.01,
+    periods: int = 200,
+    settle_periods: int = 10,
+    tol: float = 0.1,
+    alpha_max: float = 500.0,
+) -> list[dict[str, Any]]:
+    """:func:`hopf_simulate` for many points, their bisections in lockstep.
+
+    Every round gathers the next trial alpha of each unfinished search and
+    integrates them in one :func:`kicked_records_many` call, so the batched
+    kernel runs all points at once. Each search takes the same decisions as
+    it would alone.
+    """
+    searches = [_bisection(q, tol, alpha_max) for q in params]
+    results: list[dict[str, Any] | None] = [None] * len(params)
+    trials = {i: next(s) for i, s in enumerate(searches)}
+    while trials:
+        points = list(trials)
+        trial_params = [params[i].replace(alpha=trials[i]) for i in points]
+        records, status = kicked_records_many(backend, trial_params, kick, settle_periods, periods)
+        for k, i in enumerate(points):
+            growth = math.nan
+            if status[k] is Status.OK:
+                rate = envelope_growth_rate(records[k], params[i].omega_p, max(LINEAR_LIMIT, 4.0 * kick))
+                at_rest = records[k][-1, REC_THETA_ABSMAX] < ENCODER_RESOLUTION
+                growth = min(rate, 0.0) if at_rest else rate
+            try:
+                trials[i] = searches[i].send((growth, status[k]))
+            except StopIteration as finished:
+                results[i] = finished.value
+                del trials[i]
+    return results
+
+
+def _bisection(params: ModelParams, tol: float, alpha_max: float):
+    """The bisection of :func:`hopf_simulate` as a generator.
+
+    Yields trial amplitudes [N]; is sent ``(growth rate, status)`` for each;
+    returns the result dict (``StopIteration.value``).
+    """
     runs = 0
-
-    def growth(alpha: float) -> tuple[float, Status]:
-        nonlocal runs
-        runs += 1
-        records, status = kicked_records(backend, params.replace(alpha=alpha), kick, settle_periods, periods)
-        if status is not Status.OK:
-            return math.nan, status
-        rate = envelope_growth_rate(records, params.omega_p, max(LINEAR_LIMIT, 4.0 * kick))
-        at_rest = records[-1, REC_THETA_ABSMAX] < ENCODER_RESOLUTION
-        return (min(rate, 0.0) if at_rest else rate), status
-
     lo, g_lo = 0.0, math.nan
     hi = 1.25 * alpha_hopf_analytic(params) or 1.0
     while True:
-        g_hi, status = growth(hi)
+        g_hi, status = yield hi
+        runs += 1
         if status is not Status.OK:
             return _simulate_row(math.nan, lo, hi, g_lo, g_hi, runs, status.value)
         if g_hi > 0.0:
@@ -249,7 +309,8 @@ def hopf_simulate(
             return _simulate_row(math.nan, lo, math.nan, g_lo, math.nan, runs, "not-found")
     while hi - lo > tol:
         mid = 0.5 * (lo + hi)
-        g, status = growth(mid)
+        g, status = yield mid
+        runs += 1
         if status is not Status.OK:
             return _simulate_row(math.nan, lo, hi, g_lo, g_hi, runs, status.value)
         if g > 0.0:
@@ -266,6 +327,10 @@ def _simulate_row(alpha, lo, hi, g_lo, g_hi, runs, status) -> dict[str, Any]:
 
 
 # -- scans ------------------------------------------------------------------------
+#: Simulate rows per task when the backend has a batched kernel (bisections run in lockstep).
+SIMULATE_TASK_ROWS = 64
+
+
 @dataclass(frozen=True)
 class HopfConfig:
     """A Hopf-boundary scan over (omega_hat, M, method); stored with every result file.
@@ -360,24 +425,34 @@ class HopfConfig:
 def hopf_point(config: HopfConfig, mass_point: int, point: int, method: str, backend=None) -> pd.DataFrame:
     """One result row (as a one-row DataFrame with :data:`COLUMNS` and the keys)."""
     params = config.params_at(point, mass_point)
+    if method == "analytic":
+        return _result_row(config, mass_point, point, method, dict(alpha_H=alpha_hopf_analytic(params)))
+    if method == "floquet":
+        return _result_row(config, mass_point, point, method, hopf_floquet(params, config.floquet_steps, config.alpha_max))
+    return hopf_simulate_rows(config, [(mass_point, point)], backend)[0]
+
+
+def hopf_simulate_rows(config: HopfConfig, points: list[tuple[int, int]], backend=None) -> list[pd.DataFrame]:
+    """The ``simulate`` rows of ``(mass_point, point)`` pairs, bisected in lockstep (:func:`hopf_simulate_many`)."""
+    backend = backend or make_backend(config.backend, **config.backend_options)
+    results = hopf_simulate_many(
+        [config.params_at(i, j) for j, i in points], backend, kick=config.kick, periods=config.periods,
+        settle_periods=config.settle_periods, tol=config.tol, alpha_max=config.alpha_max,
+    )
+    return [
+        _result_row(config, j, i, "simulate", dict(r, kick=config.kick, backend=config.backend))
+        for (j, i), r in zip(points, results)
+    ]
+
+
+def _result_row(config: HopfConfig, mass_point: int, point: int, method: str, result: dict[str, Any]) -> pd.DataFrame:
+    params = config.params_at(point, mass_point)
     row: dict[str, Any] = dict(
         omega_hat=config.omega_hat[point], fe=params.fe, M=params.M, method=method,
         alpha_H=math.nan, status="ok", multiplier=math.nan, growth_below=math.nan, growth_above=math.nan,
         bracket_lo=math.nan, bracket_hi=math.nan, kick=math.nan, runs=1, backend="",
     )
-    if method == "analytic":
-        row["alpha_H"] = alpha_hopf_analytic(params)
-    elif method == "floquet":
-        row.update(hopf_floquet(params, config.floquet_steps, config.alpha_max))
-    else:
-        backend = backend or make_backend(config.backend, **config.backend_options)
-        row.update(
-            hopf_simulate(
-                params, backend, kick=config.kick, periods=config.periods,
-                settle_periods=config.settle_periods, tol=config.tol, alpha_max=config.alpha_max,
-            )
-        )
-        row.update(kick=config.kick, backend=config.backend)
+    row.update(result)
     df = pd.DataFrame([row], columns=COLUMNS)
     df.insert(0, "mass_point", np.int64(mass_point))
     df.insert(1, "point", np.int64(point))
@@ -400,8 +475,10 @@ def run_hopf(
 ) -> pd.DataFrame:
     """Run (or resume) a Hopf-boundary scan; one row per (M, omega_hat, method).
 
-    ``executor`` (:mod:`pendsweep.executors`, default this process) runs one
-    task per row, so ``--executor dask`` spreads the rows over a cluster.
+    ``executor`` (:mod:`pendsweep.executors`, default this process) runs the
+    tasks, so ``--executor dask`` spreads them over a cluster. Analytic and
+    Floquet rows are one task each; simulate rows on a backend with a batched
+    kernel go in tasks of :data:`SIMULATE_TASK_ROWS`, bisected in lockstep.
 
     Persistence and resuming are those of :func:`pendsweep.sweep.run_sweep`
     (:class:`~pendsweep.results.ResultStore`, keyed by ``mass_point, point,
@@ -417,8 +494,16 @@ def run_hopf(
     todo = [u for u in config.units() if u not in done]
     frames = [done_df] if not done_df.empty else []
     backend = make_backend(config.backend, **config.backend_options)
+    batched = [(j, i) for j, i, method in todo if method == "simulate" and hasattr(backend, "run_points")]
+    in_batches = set(batched)
     tasks: list[Callable[[], Iterable[pd.DataFrame]]] = [
-        lambda u=u: [hopf_point(config, *u, backend=backend)] for u in todo
+        functools.partial(hopf_simulate_rows, config, batched[k : k + SIMULATE_TASK_ROWS], backend)
+        for k in range(0, len(batched), SIMULATE_TASK_ROWS)
+    ]
+    tasks += [
+        lambda u=u: [hopf_point(config, *u, backend=backend)]
+        for u in todo
+        if u[2] != "simulate" or (u[0], u[1]) not in in_batches
     ]
     bar = tqdm(total=len(config.units()), initial=len(done), unit="pt", disable=not progress, desc="hopf")
     try:
