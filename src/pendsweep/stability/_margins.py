@@ -18,8 +18,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
+from scipy.optimize import brentq
 
 from ..params import LoopParams
 
@@ -32,6 +34,9 @@ __all__ = [
     "switch_sequence",
     "delay_margin",
     "stability_chart",
+    "numeric_crossings",
+    "servo_response",
+    "servo_delay_margin",
 ]
 
 
@@ -248,3 +253,57 @@ def stability_chart(
         elif m.verdict == "stable_all_delays":
             tau[i] = np.inf
     return tau, omega
+
+
+def numeric_crossings(
+    response: Callable[[np.ndarray], np.ndarray], omega_min: float, omega_max: float, points: int = 4000
+) -> tuple[Crossing, ...]:
+    """Gain crossovers, phase margins and switch delays of any open loop ``L0(i omega)``.
+
+    For ``1 + L0(s) e^{-s tau} = 0`` with ``L0`` stable and independent of
+    ``tau``: the crossovers are bracketed on a log grid of ``points``
+    frequencies in ``[omega_min, omega_max]`` [rad/s] and refined by Brent's
+    method; the direction is ``-sign d|L0|/d omega``.
+    """
+    w = np.geomspace(omega_min, omega_max, points)
+    g = np.log(np.abs(response(w)))
+    out = []
+    for i in np.nonzero(np.sign(g[:-1]) * np.sign(g[1:]) < 0)[0]:
+        wc = brentq(lambda x: float(np.log(np.abs(response(np.array([x]))[0]))), w[i], w[i + 1], xtol=1e-13)
+        L = complex(response(np.array([wc]))[0])
+        psi = (math.atan2(L.imag, L.real) + math.pi) % (2.0 * math.pi)
+        out.append(Crossing(wc, math.degrees(psi), psi / wc, destabilising=bool(g[i + 1] < g[i])))
+    return tuple(out)
+
+
+def servo_response(omega: np.ndarray, bandwidth: float, damping: float) -> np.ndarray:
+    """``G(i omega) = ws^2/(ws^2 - omega^2 + 2 i zeta ws omega)``, ``ws = 2 pi bandwidth`` [Hz]."""
+    ws = 2.0 * math.pi * bandwidth
+    return ws * ws / (ws * ws - omega * omega + 2j * damping * ws * omega)
+
+
+def servo_delay_margin(loop: LoopParams, bandwidth: float, damping: float, hold: float = 0.0) -> DelayMargin:
+    """Critical transport delay of ``1 + F_s N_m G(s) e^{-s (tau + hold/2)} = 0`` in continuous time.
+
+    The servo's roll-off makes the loop retarded (no neutral chain), so the
+    verdict only depends on the crossovers. ``hold`` [s] adds the zero-order
+    hold's mean delay ``hold/2`` (the backend's command DAC); the exact
+    sampled-data answer is :func:`pendsweep.stability.sampled_delay_margin`.
+    """
+    wn = math.sqrt(loop.K / loop.M1)
+    crossings = numeric_crossings(
+        lambda w: loop_response(loop, w) * servo_response(w, bandwidth, damping) * np.exp(-0.5j * w * hold),
+        1e-3 * wn,
+        1e3 * max(wn, 2.0 * math.pi * bandwidth),
+    )
+    destab = [c for c in crossings if c.destabilising]
+    if not destab:
+        return DelayMargin("stable_all_delays", "|F_s N_m G| < 1 at every frequency: stable for all delays", crossings=crossings)
+    first = min(destab, key=lambda c: c.tau)
+    return DelayMargin(
+        "critical",
+        f"with the servo, a root pair crosses at transport delay {first.tau:.6g} s, omega {first.omega:.6g} rad/s",
+        tau_star=first.tau,
+        omega_star=first.omega,
+        crossings=crossings,
+    )

@@ -42,6 +42,7 @@ import numpy as np
 import scipy.linalg
 from scipy import signal
 
+from ..backends.substructured import design_force_filter, filter_phase, phase_to_delay, predictor_weights
 from ..errors import ConfigError
 from ..params import LoopParams
 
@@ -144,16 +145,6 @@ class SampledMargin:
     reason: str
 
 
-def _predictor_weights(order: int, points: int, horizon: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """Weights (most recent first) for the extrapolated value and slope [1/s]."""
-    t = -np.arange(points, dtype=float)
-    P = np.linalg.pinv(np.vander(t, order + 1, increasing=True))
-    hs = horizon / dt
-    powers = np.array([hs**j for j in range(order + 1)])
-    dpowers = np.array([j * hs ** (j - 1) if j else 0.0 for j in range(order + 1)])
-    return powers @ P, dpowers @ P / dt
-
-
 def _mul(*terms: Rational) -> Rational:
     num, den = np.array([1.0]), np.array([1.0])
     for n, d in terms:
@@ -238,7 +229,7 @@ def open_loop(loop: LoopParams, tau: float, cfg: SampledLoop) -> Rational:
     one = np.array([1.0])
     if cfg.predicts:
         horizon = tau if cfg.tau_hat is None else cfg.tau_hat
-        w, wd = _predictor_weights(cfg.predictor_order, cfg.predictor_points, horizon, dt)
+        w, wd = predictor_weights(cfg.predictor_order, cfg.predictor_points, horizon, dt)
         to_c, to_cd = _mul((ny, dm), _fir(w)), _mul((ny, dm), _fir(wd))
     else:
         to_c, to_cd = (ny, dm), (nv, dm)
@@ -251,12 +242,12 @@ def open_loop(loop: LoopParams, tau: float, cfg: SampledLoop) -> Rational:
         L = _mul((num, to_c[1]), _delay(d + 1))
     L = _mul(L, (np.array([1.0, -1.0]) / dt, np.array([1.0, 0.0])))  # F_k = (P_k - P_k-1)/dt
     if cfg.filter_band is not None:
-        sos = signal.butter(cfg.filter_order, list(cfg.filter_band), btype="bandpass", fs=1.0 / dt, output="sos")
+        sos = design_force_filter(cfg.filter_band[0], cfg.filter_band[1], cfg.filter_order, dt)
         parts = [(sec[:3], sec[3:]) for sec in sos]
         if cfg.predicts:
-            _, hf = signal.sosfreqz(sos, worN=[cfg.filter_frequency], fs=1.0 / dt)
-            lag = -float(np.angle(hf[0])) / (2.0 * math.pi * cfg.filter_frequency)
-            parts.append(_fir(_predictor_weights(cfg.predictor_order, cfg.predictor_points, lag, dt)[0]))
+            f = cfg.filter_frequency
+            lag = phase_to_delay(filter_phase(sos, f, dt), f)
+            parts.append(_fir(predictor_weights(cfg.predictor_order, cfg.predictor_points, lag, dt)[0]))
         L = _mul(L, *parts)
     return np.trim_zeros(L[0], "f") if np.any(L[0]) else one * 0.0, L[1]
 
