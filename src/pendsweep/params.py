@@ -35,6 +35,7 @@ __all__ = [
     "FIG11B",
     "LoopParams",
     "FIG5_LOOP",
+    "FIG7_LOOP",
     "TABLE_II_P",
     "TABLE_II_LOOPS",
     "TABLE_II_MODELS",
@@ -302,6 +303,9 @@ class LoopParams:
 
 #: Fig. 5 example (caption): M1 = 20 kg, C1 = 20 kg/s, K = 2000 N/m, m_s = 10 kg, C2 = 20 kg/s.
 FIG5_LOOP = LoopParams(M1=20.0, C1=20.0, K=2000.0, ms=10.0, C2=20.0)
+#: Fig. 7 numerical model M1 = 1 kg, C1 = 5 kg/s, K = 12000 N/m on the bare platform
+#: (m_s = M2 = 0.9 kg, C2 = 10 kg/s, Table IV); the caption's tau_max = 0.009 s.
+FIG7_LOOP = LoopParams(M1=1.0, C1=5.0, K=12000.0, ms=0.9, C2=10.0)
 #: Table II mass ratios p = m_s/M1: M2 = 0.9 kg alone, then M2 + m with m = 0.27 kg
 #: plus 0.65 kg steps ("adding mass to the pendulum in increments of 650 g").
 TABLE_II_P = (0.2250, 0.2925, 0.4550, 0.6175)

@@ -82,8 +82,9 @@ def _newton(loop: LoopParams, tau: float, s0: complex, iters: int = 40) -> compl
     """Newton's method on ``D``; None where it does not converge to a root."""
     s = complex(s0)
     for _ in range(iters):
-        d, dd = characteristic(loop, tau, s)
-        if dd == 0.0:
+        with np.errstate(all="ignore"):  # far-left starts overflow exp(-s tau): not a root
+            d, dd = characteristic(loop, tau, s)
+        if not (np.isfinite(d) and np.isfinite(dd)) or dd == 0.0:
             return None
         step = complex(d / dd)
         s -= step

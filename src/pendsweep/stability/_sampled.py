@@ -269,7 +269,7 @@ def multipliers(loop: LoopParams, tau: float, cfg: SampledLoop) -> np.ndarray:
 def sampled_delay_margin(loop: LoopParams, cfg: SampledLoop, tau_max: float, tol: float = 1e-7) -> SampledMargin:
     """Smallest transport delay [s] at which the sampled loop loses stability.
 
-    Scans ``[0, tau_max]`` in steps of ``dt/2`` for the first delay with a
+    Scans ``[0, tau_max]`` in steps of ``dt`` for the first delay with a
     multiplier of modulus >= 1, then bisects to ``tol`` [s].
     """
     def radius(tau: float) -> float:
@@ -280,7 +280,7 @@ def sampled_delay_margin(loop: LoopParams, cfg: SampledLoop, tau_max: float, tol
     if cfg.actuator == "ideal":
         return SampledMargin(None, None, "the ideal actuator has no transport delay and the loop is stable")
     lo = 0.0
-    for hi in np.arange(0.5 * cfg.dt, tau_max + 0.5 * cfg.dt, 0.5 * cfg.dt):
+    for hi in np.arange(cfg.dt, tau_max + cfg.dt, cfg.dt):
         if radius(hi) >= 1.0:
             break
         lo = float(hi)
