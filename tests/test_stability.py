@@ -222,6 +222,8 @@ def test_cli_verdicts_and_table_ii(tmp_path):
     assert r.exit_code == 0 and "stable for all delays" in r.output and "no gain crossover" in r.output
     r = run("--ms", 12, "--actuator", "delay", "--tau-max", 0.01)
     assert r.exit_code == 0 and "unstable for every delay" in r.output
+    r = run("--M1", 20, "--C1", 20, "--K", 2000, "--ms", 10, "--C2", 20, "--tau-max", 0.01, "--roots-at", 0.3)
+    assert r.exit_code == 0 and "spectral abscissa at tau = 0.3 s: +" in r.output  # beyond tau* = 0.222 s
     r = run("--table2")
     assert "31.11" in r.output and "32       34       40       45" in r.output
     r = run("--predictor", "1", "--tau-max", 0.01)
@@ -234,3 +236,11 @@ def test_cli_verdicts_and_table_ii(tmp_path):
 def test_parameter_errors_name_the_range():
     with pytest.raises(ParameterError, match=r"M1 = -1.0 kg is outside the accepted range \(0, inf\)"):
         LoopParams(M1=-1.0, C1=1.0, K=1.0, ms=1.0, C2=0.0)
+
+
+def test_stability_figures_quick(tmp_path):
+    from pendsweep.figures import make_figures
+
+    written = make_figures(["fig5_margin", "fig6_chart", "stability_validation"], tmp_path, quick=True)
+    assert [p.name for p in written] == ["fig5_margin.png", "fig6_chart.png", "stability_validation.png"]
+    assert all(p.stat().st_size > 20000 for p in written)

@@ -55,10 +55,12 @@ def _pair(text: str | None, name: str, cast) -> tuple | None:
 @click.option("--filter-frequency", type=FINITE, default=2.5, show_default=True,
               help="Frequency [Hz] where the filter's phase lag sets the force-prediction horizon (the forcing frequency).")
 @click.option("--tau-max", type=FINITE, default=0.5, show_default=True, help="Largest transport delay scanned for the backend loop [s].")
+@click.option("--roots-at", "roots_at", type=FINITE, default=None, metavar="TAU",
+              help="Also list the rightmost exact roots [1/s] and the spectral abscissa at this delay [s].")
 @click.option("--table2", is_flag=True, help="Print Table II (ours next to the paper's two rows) and stop.")
 @click.option("--plot", type=click.Path(dir_okay=False, path_type=Path), default=None, help="Write a Bode diagram with the margins (PNG).")
 def margin(M1, C1, K, ms, C2, actuator, dt, servo_bandwidth, servo_damping, predictor, tau_hat, filter_band,
-           filter_order, filter_frequency, tau_max, table2, plot) -> None:  # fmt: skip
+           filter_order, filter_frequency, tau_max, roots_at, table2, plot) -> None:  # fmt: skip
     """Phase margins, stability-switch delays and the critical delay tau*.
 
     First the paper's loop 1 + F_s N_m exp(-s tau) = 0 (Eqs. 6-9): every gain
@@ -106,6 +108,13 @@ def margin(M1, C1, K, ms, C2, actuator, dt, servo_bandwidth, servo_damping, pred
             f"exact roots at tau*: rightmost s = {root.real:.2e} + {root.imag:.6g}i; spectral abscissa "
             f"{lo:+.4g} 1/s at 0.99 tau*, {hi:+.4g} 1/s at 1.01 tau*"
         )
+    if roots_at is not None:
+        if roots_at < 0:
+            raise UsageFailure(f"--roots-at {roots_at!r} s must be >= 0")
+        roots = rightmost_roots(loop, roots_at, count=6)
+        listed = ", ".join(f"{r.real:.5g} {'+' if r.imag >= 0 else '-'} {abs(r.imag):.6g}i" for r in roots)
+        click.echo(f"rightmost roots at tau = {roots_at:g} s (conjugates implied): {listed}")
+        click.echo(f"spectral abscissa at tau = {roots_at:g} s: {spectral_abscissa(loop, roots_at):+.6g} 1/s")
 
     what = "servo %g Hz, zeta %g" % (servo_bandwidth, servo_damping) if actuator == "servo" else "pure delay, Hermite command"
     click.echo(f"\nsubstructured backend loop (sampled at dt = {dt:g} s, {what}; tau = transport delay):")
