@@ -72,6 +72,8 @@ def test_trace_and_sync_commands(tmp_path):
     res = runner.invoke(main, ["sync", str(out), "-o", str(fig), "--reference", "PO"])
     assert res.exit_code == 0, res.output
     assert "Table I ratio" in res.output and "paper, Table I PO" in res.output and fig.stat().st_size > 0
+    delays = pd.read_csv(tmp_path / "sync_delay.csv")
+    assert list(delays.columns) == ["t", "delay"] and len(delays) > 10
     report = analyse(df)
     assert f"{report.ratio:.2f} %" in res.output
 
@@ -100,3 +102,15 @@ def test_sync_rejects_an_emulated_trace(tmp_path):
     res = runner.invoke(main, ["sync", str(out)])
     assert res.exit_code == 2 and "substructured" in res.output
     assert isinstance(read_trace(out)[0], pd.DataFrame)
+
+
+def test_hybrid_figures_quick(tmp_path):
+    from pendsweep.figures import make_figures
+
+    paths = make_figures(["fig9_hybrid", "fig11_hybrid", "fig12_sync"], tmp_path, quick=True)
+    assert all(p.stat().st_size > 0 for p in paths)
+    table = pd.read_csv(tmp_path / "table1_sync.csv")
+    assert set(table["motion"]) == {"PO", "CO"} and len(table) == 4
+    predicted = table[table["prediction"] != "none"]
+    assert (predicted["ratio_percent"] < 5.0).all()
+    assert (predicted["paper_ratio_percent"] == 3.9).all()

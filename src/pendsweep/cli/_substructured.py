@@ -12,25 +12,11 @@ from ..hybrid import read_trace, run_trace, write_trace
 from ..params import ModelParams
 from ..sync import TABLE_I, analyse
 from ._app import FINITE, main
-
-
-def _pairs(items: tuple[str, ...], what: str) -> dict[str, str]:
-    out = {}
-    for item in items:
-        key, sep, value = item.partition("=")
-        if not sep or not key.strip():
-            raise ConfigError(f"{what} {item!r} must look like NAME=VALUE")
-        out[key.strip()] = value.strip()
-    return out
+from ._sweep import _finite, _key_value
 
 
 def _model(alpha, fe, M, C, sets) -> ModelParams:
-    changes: dict[str, float] = {}
-    for key, value in _pairs(sets, "--set").items():
-        try:
-            changes[key] = float(value)
-        except ValueError:
-            raise ConfigError(f"--set {key}={value!r}: the value is not a number") from None
+    changes = {k: _finite(k, v) for k, v in _key_value(sets, "--set").items()}
     for key, value in (("alpha", alpha), ("fe", fe), ("M", M), ("C", C)):
         if value is not None:
             changes[key] = value
@@ -60,7 +46,7 @@ def trace_command(output, alpha, fe, M_, C_, sets, backend, backend_opts, period
     F_fb (force fed to the model), sync_error (y* - x_meas).
     """
     params = _model(alpha, fe, M_, C_, sets)
-    b = make_backend(backend, **_pairs(backend_opts, "-B"))
+    b = make_backend(backend, **_key_value(backend_opts, "--backend-option"))
     df = run_trace(b, params, (y0, 0.0, theta0, thetadot0), transient_periods, periods, stride)
     status = df.attrs.get("status", "ok")
     meta = {"params": params.to_dict(), "backend": backend, "backend_options": b.options(),
@@ -85,7 +71,11 @@ def trace_command(output, alpha, fe, M_, C_, sets, backend, backend_opts, period
 @click.option("--reference", type=click.Choice(sorted(TABLE_I)), default=None, help="Also print the paper's Table I row.")
 @click.option("--window", type=click.FloatRange(0.01, 1e4), default=1.0, show_default=True, help="Sliding window of the online delay estimate [s].")
 def sync_command(trace, output, reference, window):
-    """Synchronisation accuracy of a substructured TRACE (Table I, J1-J3, Fig. 12 panels)."""
+    """Synchronisation accuracy of a substructured TRACE (Table I, J1-J3, Fig. 12 panels).
+
+    Prints the metrics, draws subspace, error, error PSD and the online delay
+    estimate, and writes the estimate's time series next to the figure.
+    """
     from ..figures.hybrid import draw_sync
 
     df, meta = read_trace(trace)
@@ -96,4 +86,6 @@ def sync_command(trace, output, reference, window):
         click.echo(line)
     path = output or Path(trace).with_suffix(".png")
     draw_sync(df, report, path)
-    click.echo(f"wrote {path}")
+    delay_csv = path.with_name(path.stem + "_delay.csv")
+    report.delay_online.to_csv(delay_csv, index=False)
+    click.echo(f"wrote {path} and {delay_csv} (online delay estimate: t [s], delay [s])")

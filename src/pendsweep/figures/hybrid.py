@@ -7,7 +7,7 @@ total delay, paper-level noise, first-order 5-point prediction with
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import replace
 from pathlib import Path
 
 import matplotlib
@@ -19,10 +19,13 @@ import pandas as pd  # noqa: E402
 
 from ..backends import make_backend  # noqa: E402
 from ..hybrid import run_trace  # noqa: E402
-from ..params import FIG9_CO, FIG9_PO, FIG11A, FIG11B, ModelParams  # noqa: E402
-from ..sweep import SweepConfig, run_sweep, value_range  # noqa: E402
+from ..params import FIG9_CO, FIG9_PO, ModelParams  # noqa: E402
+from ..plotting import draw_bifurcation  # noqa: E402
+from ..sweep import run_sweep, sweep_metadata  # noqa: E402
+from ..sweepfile import load_sweep  # noqa: E402
 from ..sync import TABLE_I, SyncReport, error_psd, sync_ratio  # noqa: E402
 from . import figure  # noqa: E402
+from .core import SWEEPS  # noqa: E402
 
 INITIAL = (0.0, 0.0, 0.1, 0.0)
 CASES = {"PO": FIG9_PO, "CO": FIG9_CO}
@@ -65,57 +68,39 @@ def fig9_hybrid(outdir: Path, quick: bool) -> list[Path]:
     return [path]
 
 
-def _sweep(parameter: str, values: np.ndarray, base: ModelParams, backend: str, quick: bool) -> pd.DataFrame:
-    config = SweepConfig(
-        parameter=parameter,
-        values=tuple(values),
-        model=base.to_dict(),
-        backend=backend,
-        transient_periods=20 if quick else 100,
-        record_periods=5 if quick else 20,
-        initial=INITIAL,
-    )
-    return run_sweep(config, None, n_jobs=1)
+def _hybrid_sweeps(name: str, quick: bool):
+    """The lead's ``sweeps/<name>.toml`` run with the emulated and the substructured backend.
 
-
-@dataclass(frozen=True)
-class _Diagram:
-    tag: str
-    parameter: str
-    values: np.ndarray
-    base: ModelParams
-    label: str
-
-
-def _draw_diagram(ax, df: pd.DataFrame, d: _Diagram, title: str) -> None:
-    ok = df[df["status"] == "ok"]
-    ax.plot(ok[d.parameter], ok["theta_peak"], "k.", ms=1.5)
-    bad = df[df["status"] != "ok"].drop_duplicates("point")
-    if len(bad):
-        ax.plot(bad[d.parameter], np.zeros(len(bad)), "rx", ms=4, label="unstable loop")
-        ax.legend(loc="lower left", fontsize=7)
-    ax.set_ylim(-np.pi, np.pi)
-    ax.set_xlabel(d.label)
-    ax.set_title(title, fontsize=9)
+    The substructured sweep skips values with ``M <= M2`` (no numerical mass left).
+    """
+    config = load_sweep(SWEEPS / f"{name}.toml").config
+    if quick:
+        config = replace(config, values=config.values[::10], transient_periods=10, record_periods=5)
+    out = {}
+    for backend in ("substructured", "emulated"):
+        values = config.values
+        if backend == "substructured" and config.parameter == "M":
+            values = tuple(v for v in values if v > config.base_params.M2)
+        cfg = replace(config, backend=backend, backend_options={}, values=values)
+        out[backend] = (run_sweep(cfg, None, n_jobs=1), sweep_metadata(cfg))
+    return out
 
 
 @figure("fig11_hybrid")
 def fig11_hybrid(outdir: Path, quick: bool) -> list[Path]:
-    """Fig. 11 (a1)/(a2) and (b1)/(b2): theta peaks, substructured (theta_x) and emulated."""
-    every = 10 if quick else 1
-    diagrams = [
-        _Diagram("a", "alpha", value_range(0.0, 45.0, 0.5)[::every], FIG11A, r"$\alpha$ [N]"),
-        # Below M1 ~ 3.1 kg (mass ratio (M2 + m)/M1 > 0.38) the unfiltered loop
-        # trips; those points are marked. See docs/substructured.md.
-        _Diagram("b", "M1", value_range(0.1, 12.1, 0.1)[::every], FIG11B, r"$M_1 = M - M_2$ [kg]"),
-    ]
-    fig, axes = plt.subplots(2, 2, figsize=(11, 7))
-    for row, d in enumerate(diagrams):
-        for col, backend in enumerate(("substructured", "emulated")):
-            df = _sweep(d.parameter, d.values, d.base, backend, quick)
+    """Fig. 11 (a1)/(a2) and (b1)/(b2): theta peaks, substructured (theta_x) and emulated, side by side.
+
+    Below M ~ 4 kg (mass ratio (M2 + m)/M1 > 0.38) the default substructured loop
+    trips; those points are marked as unstable (see docs/substructured.md).
+    """
+    fig, axes = plt.subplots(2, 2, figsize=(12, 8), sharey=True)
+    for row, name in enumerate(("fig11a", "fig11b")):
+        for col, (backend, result) in enumerate(_hybrid_sweeps(name, quick).items()):
             ax = axes[row, col]
-            _draw_diagram(ax, df, d, f"({d.tag}{col + 1}) {backend}, fe = {d.base.fe:g} Hz")
-            ax.set_ylabel(r"$\theta_{x,\max}$ [rad]" if col == 0 else r"$\theta_{\max}$ [rad]")
+            draw_bifurcation(ax, [result])
+            ax.set_title(f"({'ab'[row]}{col + 1}) {backend}, fe = 2.5 Hz", fontsize=9)
+            if col == 0:
+                ax.set_ylabel(r"$\theta_{x}$ peaks [rad] (encoder)")
     fig.tight_layout()
     path = outdir / "fig11_hybrid.png"
     fig.savefig(path, dpi=120)
