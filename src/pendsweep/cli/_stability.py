@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import click
@@ -92,7 +93,7 @@ def margin(M1, C1, K, ms, C2, actuator, dt, servo_bandwidth, servo_damping, pred
                        filter_band=band, filter_order=filter_order, filter_frequency=filter_frequency)  # fmt: skip
     comp = None
     if pred is not None:
-        comp = SampledLoop(**{**base.__dict__, "predictor_order": pred[0], "predictor_points": pred[1], "tau_hat": horizon})
+        comp = dataclasses.replace(base, predictor_order=pred[0], predictor_points=pred[1], tau_hat=horizon)
 
     click.echo(
         f"loop: M1 = {loop.M1:g} kg, C1 = {loop.C1:g} kg/s, K = {loop.K:g} N/m, m_s = {loop.ms:g} kg, "

@@ -42,13 +42,19 @@ import numpy as np
 import scipy.linalg
 from scipy import signal
 
-from ..backends.substructured import design_force_filter, filter_phase, phase_to_delay, predictor_weights
+from ..backends.substructured import (
+    ACTUATORS,
+    MAX_PREDICTOR_ORDER,
+    design_force_filter,
+    filter_phase,
+    phase_to_delay,
+    predictor_weights,
+)
 from ..errors import ConfigError
 from ..params import LoopParams
 
 __all__ = ["SampledLoop", "SampledMargin", "open_loop", "sampled_response", "multipliers", "sampled_delay_margin"]
 
-ACTUATORS = ("servo", "delay", "ideal")
 Rational = tuple[np.ndarray, np.ndarray]  # (numerator, denominator), descending powers of z
 
 
@@ -105,8 +111,10 @@ class SampledLoop:
                 f"servo_bandwidth = {self.servo_bandwidth!r} Hz and servo_damping = "
                 f"{self.servo_damping!r} must both be > 0"
             )
-        if not -1 <= self.predictor_order <= 4:
-            raise ConfigError(f"predictor_order = {self.predictor_order!r}; accepted: -1 (none) or 0..4")
+        if not -1 <= self.predictor_order <= MAX_PREDICTOR_ORDER:
+            raise ConfigError(
+                f"predictor_order = {self.predictor_order!r}; accepted: -1 (none) or 0..{MAX_PREDICTOR_ORDER}"
+            )
         if self.predictor_points < max(self.predictor_order + 1, 1):
             raise ConfigError(
                 f"predictor_points = {self.predictor_points!r} must be >= predictor_order + 1 "
@@ -226,7 +234,6 @@ def open_loop(loop: LoopParams, tau: float, cfg: SampledLoop) -> Rational:
     d = int(math.floor(tau / dt + 1e-9))
     delta = max(tau - d * dt, 0.0)
     ny, nv, dm = _model(loop, dt)
-    one = np.array([1.0])
     if cfg.predicts:
         horizon = tau if cfg.tau_hat is None else cfg.tau_hat
         w, wd = predictor_weights(cfg.predictor_order, cfg.predictor_points, horizon, dt)
@@ -249,7 +256,7 @@ def open_loop(loop: LoopParams, tau: float, cfg: SampledLoop) -> Rational:
             lag = phase_to_delay(filter_phase(sos, f, dt), f)
             parts.append(_fir(predictor_weights(cfg.predictor_order, cfg.predictor_points, lag, dt)[0]))
         L = _mul(L, *parts)
-    return np.trim_zeros(L[0], "f") if np.any(L[0]) else one * 0.0, L[1]
+    return L
 
 
 def sampled_response(loop: LoopParams, tau: float, cfg: SampledLoop, omega: np.ndarray) -> np.ndarray:
