@@ -156,7 +156,7 @@ def test_exact_sampled_loop_predicts_backend_growth(actuator, tau):
     assert g.omega == pytest.approx(omega, rel=0.01)
 
 
-@pytest.mark.parametrize("index", [0, 3], ids=["p0.225", "p0.6175"])
+@pytest.mark.parametrize("index", [0, 1, 2, 3], ids=["p0.225", "p0.2925", "p0.455", "p0.6175"])
 @pytest.mark.parametrize("actuator", ["delay", "servo"])
 def test_simulated_critical_delay_matches_theory(index, actuator):
     """The paper's protocol on the backend: raise the delay until y* grows (Table II sets)."""
