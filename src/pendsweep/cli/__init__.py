@@ -9,5 +9,6 @@ from ._app import main
 from . import _sweep  # noqa: F401,E402  (registers the sweep commands)
 from . import _hopf  # noqa: F401,E402  (registers the hopf command)
 from . import _substructured  # noqa: F401,E402  (registers trace and sync)
+from . import _stability  # noqa: F401,E402  (registers margin)
 
 __all__ = ["main"]
