@@ -6,6 +6,7 @@ become a one-line message and exit status 2, never a traceback.
 """
 
 from ._app import main
+from . import _data  # noqa: F401
 
 
 __all__ = ["main"]
