@@ -64,7 +64,7 @@ class ParamSpec:
     doc: str = ""
 
     def describe_range(self) -> str:
-        lo = "[" if self.lower_inclusive else "("
+        lo = "[" if self.lower_inclusive and self.lower != -math.inf else "("
         lo_v = "-inf" if self.lower == -math.inf else f"{self.lower:g}"
         hi_v = "inf" if self.upper == math.inf else f"{self.upper:g}"
         return f"{lo}{lo_v}, {hi_v})"

@@ -38,5 +38,4 @@ def make_figures(names: list[str] | None, outdir: Path, quick: bool = False) -> 
         written += FIGURES[name](outdir, quick)
     return written
 
-
-
+from . import core  # noqa: E402,F401  (registers figures)

@@ -1,0 +1,111 @@
+"""CLI: real sweeps end to end, and every bad input gives exit 2 with a clear message."""
+
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from pendsweep.cli import main
+from pendsweep.results import read_results
+
+FAST = ["--transient-periods", "3", "--record-periods", "2", "--no-progress"]
+
+
+def invoke(*args):
+    return CliRunner().invoke(main, [str(a) for a in args])
+
+
+def test_alpha_sweep_writes_results_and_plot(tmp_path):
+    out, png = tmp_path / "a.parquet", tmp_path / "a.png"
+    r = invoke("alpha", "--from", 0, "--to", 2, "--step", 1, "--fe", 2.2, *FAST, "-o", out, "--plot", png)
+    assert r.exit_code == 0, r.output
+    df, meta = read_results(out)
+    assert sorted(df["alpha"].unique()) == [0.0, 1.0, 2.0] and meta["config"]["model"]["fe"] == 2.2
+    assert png.stat().st_size > 10_000
+    r = invoke("plot", out, "-o", tmp_path / "b.pdf", "--observable", "theta_absmax")
+    assert r.exit_code == 0, r.output
+
+
+def test_mass_and_fe_and_generic_sweeps(tmp_path):
+    for args in (["mass", "--from", 5, "--to", 6, "--step", 1],
+                 ["fe", "--from", 2.4, "--to", 2.5, "--points", 2],
+                 ["sweep", "K", "--from", 1800, "--to", 1900, "--step", 100, "--set", "b1=0"]):
+        r = invoke(*args, *FAST, "-o", tmp_path / f"{args[0]}.parquet")
+        assert r.exit_code == 0, r.output
+
+
+def test_run_toml_and_regenerate_from_parquet(tmp_path):
+    sweep = tmp_path / "s.toml"
+    out = tmp_path / "s.parquet"
+    sweep.write_text(f'parameter = "alpha"\nfrom = 1.0\nto = 2.0\nstep = 1.0\ntransient_periods = 3\n'
+                     f'record_periods = 2\noutput = "{out}"\n[model]\nfe = 2.2\n[backend]\nname = "emulated"\nsignum = "stage"\n')
+    assert invoke("run", sweep, "--no-progress").exit_code == 0
+    again = tmp_path / "again.parquet"
+    r = invoke("run", out, "-o", again, "--no-progress")
+    assert r.exit_code == 0, r.output
+    a, meta = read_results(out)
+    b, _ = read_results(again)
+    assert a.equals(b) and meta["config"]["backend_options"]["signum"] == "stage"
+
+
+def test_shipped_sweep_definitions_load():
+    from pendsweep.sweepfile import load_sweep
+
+    root = Path(__file__).resolve().parents[1] / "sweeps"
+    a = load_sweep(root / "fig11a.toml")
+    assert a.config.parameter == "alpha" and len(a.config.values) == 91 and a.config.model["fe"] == 2.5
+    b = load_sweep(root / "fig11b.toml")
+    assert b.config.parameter == "M" and b.config.model["alpha"] == 17.0 and b.config.values[-1] == pytest.approx(13.0)
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["mass", "--from", "-1", "--to", "5"], "M = -1.0 kg is outside the accepted range (0, inf)"),
+        (["alpha", "--from", "0", "--to", "10", "--step", "-1"], "wrong sign"),
+        (["alpha", "--from", "0", "--to", "10", "--step", "0"], "non-zero"),
+        (["alpha", "--from", "0", "--to", "10", "--fe", "nan"], "not finite"),
+        (["alpha", "--from", "0", "--to", "inf"], "not finite"),
+        (["alpha", "--from", "0", "--to", "1", "--fe", "0"], "fe = 0.0 Hz is outside the accepted range (0, inf)"),
+        (["alpha", "--from", "0", "--to", "1", "--K", "-5"], "K = -5.0 N/m"),
+        (["alpha", "--from", "0", "--to", "1", "--set", "l=0"], "l = 0.0 m"),
+        (["alpha", "--from", "0", "--to", "1", "--set", "length=2"], "unknown parameter 'length'"),
+        (["alpha", "--from", "0", "--to", "1", "--dt", "-0.001"], "dt = -0.001"),
+        (["alpha", "--from", "0", "--to", "1", "-B", "wobble=1"], "unknown option(s) wobble"),
+        (["sweep", "stiffness", "--from", "0", "--to", "1", "--step", "1"], "unknown parameter 'stiffness'"),
+        (["fe", "--from", "2", "--to", "3", "--mode", "sideways"], "Invalid value for '--mode'"),
+    ],
+)
+def test_bad_input_exits_2_with_message(args, message):
+    r = invoke(*args, "--no-progress")
+    assert r.exit_code == 2, r.output
+    assert message in r.output
+    assert "Traceback" not in r.output
+
+
+def test_unwritable_results_path_exits_2(tmp_path):
+    blocker = tmp_path / "f"
+    blocker.write_text("")
+    r = invoke("alpha", "--from", 0, "--to", 1, *FAST, "-o", blocker / "x.parquet")
+    assert r.exit_code == 2 and "cannot write results" in r.output
+
+
+def test_toml_with_unknown_key_exits_2(tmp_path):
+    sweep = tmp_path / "bad.toml"
+    sweep.write_text('parameter = "alpha"\nfrom = 0\nto = 1\nstep = 1\ntransient = 5\n')
+    r = invoke("run", sweep)
+    assert r.exit_code == 2 and "unknown key(s) transient" in r.output
+    r = invoke("run", tmp_path / "missing.toml")
+    assert r.exit_code == 2 and "no sweep file" in r.output
+
+
+def test_params_lists_units():
+    r = invoke("params")
+    assert r.exit_code == 0 and "alpha" in r.output and "N/m" in r.output
+
+
+def test_figures_quick_smoke(tmp_path):
+    r = invoke("figures", "fig8", "fig9", "fig11a", "--quick", "--out", tmp_path)
+    assert r.exit_code == 0, r.output
+    assert {p.name for p in tmp_path.glob("*.png")} == {"fig8.png", "fig9.png", "fig11a-quick.png"}
+    assert invoke("figures", "fig99").exit_code == 2
