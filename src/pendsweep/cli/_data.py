@@ -125,9 +125,11 @@ def fit_damping(data, json_out, params_out, mass, skip, plot):
         json_out.parent.mkdir(parents=True, exist_ok=True)
         json_out.write_text(json.dumps(out, indent=1) + "\n")
     if params_out:
+        from ..diagnose.effects import model_file
+
         model = records[0].params.replace(**fit.model_params(mass if mass is not None else records[0].params.m))
         params_out.parent.mkdir(parents=True, exist_ok=True)
-        params_out.write_text(json.dumps(model.to_dict(), indent=1, sort_keys=True) + "\n")
+        params_out.write_text(json.dumps(model_file(model), indent=1, sort_keys=True) + "\n")
     if plot:
         from ..diagnose.report import plot_envelopes
 

@@ -95,3 +95,12 @@ def split_values(values: dict[str, float]) -> tuple[ModelParams, dict[str, float
     model = ModelParams.from_mapping({k: v for k, v in values.items() if k in fields})
     chain = {k: float(values[k]) for k in CHAIN_PARAMS if k in values}
     return model, chain
+
+
+def model_file(model: ModelParams) -> dict[str, float]:
+    """A params file for ``pendsweep sweep --model``: every ModelParams field but the forcing.
+
+    ``alpha`` and ``fe`` are test conditions of the record, not physics, so a
+    sweep keeps its own forcing.
+    """
+    return {k: v for k, v in model.to_dict().items() if k not in ("alpha", "fe")}

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .effects import EFFECTS, split_values
+from .effects import EFFECTS, model_file, split_values
 from .fit import DELTA_BIC, FLOOR_SHARE, P_VALUE, Diagnosis
 from .signatures import backbone, cross_correlation, extrema, residual_spectrum, summarize
 
@@ -20,14 +20,14 @@ def extended_params(diag: Diagnosis) -> dict[str, float]:
     """The extended model as a JSON-able mapping of ModelParams fields.
 
     The nominal model with the named cause's estimate applied when it is a
-    ModelParams field; chain parameters (gain, theta0, tau, gain_Fs) are not
-    model physics and are left out.
+    ModelParams field; chain parameters (gain, theta0, tau, gain_Fs) and the
+    record's forcing (alpha, fe) are not model physics and are left out.
     """
     values = dict(diag.replay.nominal)
     if diag.best is not None:
         values.update(diag.best.estimate)
     model, _ = split_values(values)
-    return model.to_dict()
+    return model_file(model)
 
 
 def ambiguous_with(diag: Diagnosis) -> list[str]:
