@@ -32,7 +32,8 @@ def _pairs(items: tuple[str, ...], what: str) -> dict[str, float]:
 @click.option("--train-fraction", type=FINITE, default=0.6, show_default=True, help="Leading fraction of the record used for fitting [-].")
 @click.option("--cause", "causes", multiple=True, help="Restrict the candidates to these causes (repeatable).")
 @click.option("--jobs", type=int, default=1, show_default=True, help="Candidates fitted in parallel.")
-def diagnose(data, json_out, report_dir, horizon, train_fraction, causes, jobs):
+@click.option("--model", "model_file", type=click.Path(dir_okay=False, path_type=Path), help="JSON of ModelParams fields replacing the record's nominal model (e.g. from fit-damping --params-out).")
+def diagnose(data, json_out, report_dir, horizon, train_fraction, causes, jobs, model_file):
     """Compare a measured record with its nominal model and name the missing effect.
 
     DATA is a format-v1 record (.csv with a .json sidecar, or .parquet) or a
@@ -43,6 +44,10 @@ def diagnose(data, json_out, report_dir, horizon, train_fraction, causes, jobs):
     from ..diagnose.report import write_report
 
     record = read_record(data)
+    if model_file is not None:
+        from ._sweep import load_model_file
+
+        record.params = record.params.replace(**load_model_file(model_file))
     diag = run(Replay(record, horizon, train_fraction), list(causes) or None, n_jobs=jobs)
     text = json.dumps(diag.to_json(), indent=1)
     if json_out:

@@ -103,8 +103,12 @@ def start_value(replay: Replay, eff: Effect) -> float:
     return float(nominal)
 
 
-def fit_model(replay: Replay, cause: str | None) -> Fit:
-    """Fit ``cause``'s parameter (and nuisance parameters) on the training part."""
+def fit_model(replay: Replay, cause: str | None, nuisance: dict[str, float] | None = None) -> Fit:
+    """Fit ``cause``'s parameter (and nuisance parameters) on the training part.
+
+    ``nuisance`` gives starting values of the nuisance parameters (the nominal
+    fit's), so that a candidate starts from the nominal optimum, which it nests.
+    """
     names: list[str] = []
     start: list[float] = []
     scale: list[float] = []
@@ -121,7 +125,7 @@ def fit_model(replay: Replay, cause: str | None) -> Fit:
     if replay.fits_initial_state:
         for nm in NUISANCE:
             names.append(nm)
-            start.append(replay.initial_guess[nm])
+            start.append((nuisance or replay.initial_guess)[nm])
             scale.append(_NUISANCE_SCALE[nm])
             lo.append(-math.inf)
             hi.append(math.inf)
@@ -248,7 +252,8 @@ def diagnose(replay: Replay, causes: list[str] | None = None, n_jobs: int = 1) -
             f"cause(s) {', '.join(bad)} do not apply to kind {replay.kind!r}; applicable: {', '.join(allowed)}"
         )
     nominal = fit_model(replay, None)
-    fits = Parallel(n_jobs=n_jobs, prefer="threads")(delayed(fit_model)(replay, c) for c in causes)
+    start = {k: nominal.values[k] for k in NUISANCE} if replay.fits_initial_state else None
+    fits = Parallel(n_jobs=n_jobs, prefer="threads")(delayed(fit_model)(replay, c, start) for c in causes)
     fits.sort(key=lambda f: (f.error_after, f.bic))
     floor = replay.noise_floor()
     tests: dict[str, Any] = {"noise_floor": floor}
