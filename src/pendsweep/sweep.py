@@ -41,7 +41,7 @@ import pandas as pd
 from joblib import Parallel, delayed
 
 from ._version import __version__
-from .backends import PointRun, make_backend
+from .backends import BACKENDS, PointRun, make_backend
 from .errors import ConfigError
 from .kernels import RECORD_COLUMNS
 from .params import ENCODER_RESOLUTION, PARAM_SPECS, ModelParams, check_value
@@ -162,7 +162,11 @@ class SweepConfig:
         return self.base_params.replace(**{self.parameter: value})
 
     def make_backend(self):
-        backend = make_backend(self.backend, **self.backend_options)
+        options = dict(self.backend_options)
+        cls = BACKENDS.get(self.backend)
+        if cls is not None and "seed" in {f.name for f in dataclasses.fields(cls)}:
+            options.setdefault("seed", self.seed)  # the sweep's seed drives backend noise too
+        backend = make_backend(self.backend, **options)
         for v in (self.values[0], self.values[-1]):
             backend.validate(self.params_at(v))
         return backend

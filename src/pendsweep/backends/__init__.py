@@ -2,12 +2,14 @@
 
 from ._base import BACKENDS, Backend, PointRun, make_backend, register, steps_per_period
 from .emulated import EmulatedBackend
+from .substructured import SubstructuredBackend
 
 __all__ = [
     "BACKENDS",
     "Backend",
     "EmulatedBackend",
     "PointRun",
+    "SubstructuredBackend",
     "make_backend",
     "register",
     "steps_per_period",

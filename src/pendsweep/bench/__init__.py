@@ -57,4 +57,5 @@ def run_benchmarks(names: list[str] | None, output: Path, quick: bool = False) -
 
 
 from . import core  # noqa: E402,F401  (registers benchmarks)
+from . import substructured  # noqa: E402,F401  (registers benchmarks)
 from . import measured  # noqa: E402,F401  (registers benchmarks)

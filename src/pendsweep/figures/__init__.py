@@ -39,3 +39,4 @@ def make_figures(names: list[str] | None, outdir: Path, quick: bool = False) -> 
     return written
 
 from . import core  # noqa: E402,F401  (registers figures)
+from . import hybrid  # noqa: E402,F401  (registers the hybrid-test figures)

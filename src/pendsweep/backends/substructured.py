@@ -1,0 +1,397 @@
+"""A simulated real-time dynamic substructuring test (sections 2.2-2.6 of the paper).
+
+The mass-spring-damper is the numerical model, Eq. (3), integrated by the
+controller; the pendulum on its platform is the physical substructure (a
+virtual rig integrated at a finer step), the actuator is the transfer
+system, and a load cell feeds the interface force back. The loop itself is
+:func:`pendsweep.kernels._substructured.substructured_loop`; its module
+docstring gives the exact order of operations within one controller tick.
+
+Timing conventions (used by the stability analysis of this loop)
+-----------------------------------------------------------------
+* Controller step ``dt`` (default 1 ms), adjusted like the emulated backend to
+  a whole number ``n`` of ticks per forcing period: ``dt = 1/(fe n)``.
+* Numerical model: RK4 over one tick with ``F = F_e(t) - F_fb``, ``F_e`` exact
+  at the stages and ``F_fb`` the force sampled at the tick's start and held.
+* Command ``c_k`` = ``y*`` predicted by ``tau_hat`` from the samples up to
+  ``y*_k``. The servo sees it through a zero-order hold that writes ``c_k`` at
+  ``t_k`` and keeps it until ``t_k+1`` (an average delay of ``dt/2``), after a
+  transport delay ``tau``, then ``G(s) = ws^2/(s^2 + 2 zeta ws s + ws^2)``:
+  ``T(s) = exp(-s tau) G(s)`` on the held command.
+* Actuator ``"delay"``: ``x(t) = c(t - tau)`` with ``c(t)`` the cubic Hermite
+  interpolant of the command samples and their slopes (no hold, no lag), the
+  fixed-delay model of Eq. (6). ``"ideal"``: the same with ``tau = 0``; with
+  no prediction ``x`` then follows ``y*`` exactly (the consistency limit).
+* Total effective delay at frequency ``f`` (:func:`effective_delay`):
+  ``tau + dt/2 + arg(1/G(j 2 pi f)) / (2 pi f)`` for the servo (transport +
+  hold + servo phase lag), ``tau`` for ``"delay"``, 0 for ``"ideal"``. The
+  force path's own hold (``dt/2``) and the numerical model's RK4 are not
+  counted: the total describes how ``x`` lags ``y*``, which is what the
+  predictor compensates and what the synchronisation error measures. With
+  the defaults (30 Hz, zeta 0.7, tau 10 ms, dt 1 ms) it is 17.94 ms at
+  2.2 Hz and 17.95 ms at 2.5 Hz, the paper's "approximately 18 ms".
+
+Noise is drawn outside the kernel from ``numpy.random.default_rng([seed,
+ticks])`` where ``ticks`` (``state[6]``) counts the controller ticks already
+run from the state's initial condition, so a branch is reproducible whatever
+the thread scheduling and a continued state never replays the same noise.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+import pandas as pd
+from scipy import signal
+
+from ..errors import ConfigError
+from ..kernels import N_RECORD_COLUMNS
+from ..kernels._substructured import (
+    ACT_HERMITE,
+    ACT_SERVO,
+    N_TRACE_COLUMNS,
+    TRACE_COLUMNS,
+    state_offsets,
+    substructured_loop,
+)
+from ..params import ENCODER_RESOLUTION, ModelParams
+from ..status import Status
+from ._base import PointRun, register, steps_per_period
+
+ACTUATORS = ("servo", "delay", "ideal")
+MAX_PREDICTOR_ORDER = 4
+#: Instability test: rms of x'' at the controller rate above this [m/s^2] ...
+HF_ACCEL_FLOOR = 2.0
+#: ... and above this multiple of a pure forcing-frequency motion's, for 2 periods in a row.
+HF_RATIO = 10.0
+
+
+def effective_delay(
+    actuator: str, transport_delay: float, servo_bandwidth: float, servo_damping: float, dt: float, frequency: float
+) -> float:
+    """Total effective delay [s] of ``x`` behind ``y*`` at ``frequency`` [Hz].
+
+    Servo: transport delay + ``dt/2`` (zero-order hold of the command) + the
+    servo's phase lag divided by the angular frequency. Delay actuator: the
+    transport delay. Ideal: 0.
+    """
+    if actuator == "ideal":
+        return 0.0
+    if actuator == "delay":
+        return transport_delay
+    w = 2.0 * math.pi * frequency
+    ws = 2.0 * math.pi * servo_bandwidth
+    lag = math.atan2(2.0 * servo_damping * ws * w, ws * ws - w * w)
+    return transport_delay + 0.5 * dt + lag / w
+
+
+def predictor_weights(order: int, points: int, horizon: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Least-squares polynomial extrapolation as two weight vectors.
+
+    The polynomial of ``order`` fitted to ``points`` samples at times
+    ``0, -dt, ..., -(points-1) dt`` (most recent first) is evaluated at
+    ``horizon`` [s]: value ``= w @ samples`` and slope ``= wd @ samples`` [1/s].
+    """
+    s = -np.arange(points, dtype=np.float64)  # sample times in units of dt
+    V = np.vander(s, order + 1, increasing=True)
+    P = np.linalg.pinv(V)  # (order+1, points): coefficients from samples
+    hs = horizon / dt
+    powers = np.array([hs**j for j in range(order + 1)])
+    dpowers = np.array([j * hs ** (j - 1) if j > 0 else 0.0 for j in range(order + 1)])
+    return np.ascontiguousarray(powers @ P), np.ascontiguousarray(dpowers @ P / dt)
+
+
+def design_force_filter(low: float, high: float, order: int, dt: float) -> np.ndarray:
+    """Butterworth band-pass ``[low, high]`` Hz at sample step ``dt`` as SOS ``(order, 6)``."""
+    return np.ascontiguousarray(signal.butter(order, [low, high], btype="bandpass", fs=1.0 / dt, output="sos"))
+
+
+def filter_phase(sos: np.ndarray, frequency: float, dt: float) -> float:
+    """Phase [rad] of the filter at ``frequency`` [Hz] (negative: lag)."""
+    _, hresp = signal.sosfreqz(sos, worN=[frequency], fs=1.0 / dt)
+    return float(np.angle(hresp[0]))
+
+
+def phase_to_delay(phase: float, frequency: float) -> float:
+    """Equivalent delay [s] of a phase shift [rad] at ``frequency`` [Hz]: ``-phase / (2 pi f)``."""
+    return -phase / (2.0 * math.pi * frequency)
+
+
+@register
+@dataclass(frozen=True)
+class SubstructuredBackend:
+    """Simulated real-time substructuring test of the pendulum-oscillator.
+
+    The numerical model is ``M1 y*'' + C1 y*' + K y* = F_e - F_s`` with
+    ``M1 = M - M2`` and ``C1 = C - C2`` (Table IV: ``M2 = 0.9 kg``,
+    ``C2 = 10 kg/s``); the rig is the pendulum on the platform ``(M2, C2)``
+    driven at the pivot by the actuator. Records hold ``y*`` and the encoder
+    angle ``theta_x`` (quantised), as in Fig. 11; ``thetadot_sec`` is the true
+    rate. State: ``(y*, y*', theta, theta', x, x', ticks, x_k-1, x_k-2,``
+    command delay line, command slopes, ``y*`` history, filtered-force
+    history, filter registers ``)``; see the kernel module.
+
+    Attributes
+    ----------
+    dt : float
+        Controller step [s] (default 1 ms), adjusted to whole ticks per period.
+    physics_substeps : int
+        Rig RK4 substeps per controller step (default 10: 0.1 ms).
+    actuator : {"servo", "delay", "ideal"}
+        Transfer system model (see the module docstring).
+    transport_delay : float
+        Pure delay before the servo [s] (default 10 ms; total 17.9 ms at 2.2 Hz).
+    servo_bandwidth : float
+        Servo natural frequency [Hz] (default 30).
+    servo_damping : float
+        Servo damping ratio (default 0.7).
+    predictor_order : int
+        Polynomial order 0-4 of the forward prediction of ``y*``; -1: none (default 1).
+    predictor_points : int
+        Samples ``N >= order + 1`` in the least-squares fit (default 5).
+    tau_hat : float
+        Prediction horizon [s]; negative (default -1): the total effective
+        delay at the forcing frequency, :meth:`effective_delay`.
+    force_filter : bool
+        Band-pass the measured force (default off).
+    filter_low, filter_high : float
+        Band edges [Hz] of the Butterworth band-pass (default 1-3.6 Hz: at
+        2.2 Hz its phase is -0.215 rad, close to the paper's Fig. 7 example).
+    filter_order : int
+        Butterworth order (the band-pass has twice this many poles; default 1).
+        With prediction on, the filtered force is predicted forward by the
+        filter's equivalent delay ``-phase(fe) / (2 pi fe)``.
+    force_noise : float
+        Standard deviation of the load cell's white electrical noise [N] (default 0.1).
+    harmonic3, harmonic5, harmonic7 : float
+        Amplitudes [N] of the servo vibration at 3, 5, 7 times the forcing
+        frequency in the load-cell signal (defaults 0.1, 0.05, 0.03).
+    encoder_resolution : float
+        Encoder step [rad] (default 0.0013, Table III; 0: exact).
+    lvdt_resolution : float
+        LVDT quantisation [m] (default 1e-5: 150 mm range on 14 bits).
+    lvdt_noise : float
+        LVDT noise standard deviation [m] (default 2e-5).
+    stroke : float
+        Actuator stroke limit [m]: ``|x|`` or ``|y*|`` beyond it stops the point
+        as unstable (default 0.075, the LVDT's +-75 mm).
+    seed : int
+        Seed of the noise (default 0).
+    """
+
+    name: ClassVar[str] = "substructured"
+    dt: float = 1e-3
+    physics_substeps: int = 10
+    actuator: str = "servo"
+    transport_delay: float = 0.010
+    servo_bandwidth: float = 30.0
+    servo_damping: float = 0.7
+    predictor_order: int = 1
+    predictor_points: int = 5
+    tau_hat: float = -1.0
+    force_filter: bool = False
+    filter_low: float = 1.0
+    filter_high: float = 3.6
+    filter_order: int = 1
+    force_noise: float = 0.1
+    harmonic3: float = 0.1
+    harmonic5: float = 0.05
+    harmonic7: float = 0.03
+    encoder_resolution: float = ENCODER_RESOLUTION
+    lvdt_resolution: float = 1e-5
+    lvdt_noise: float = 2e-5
+    stroke: float = 0.075
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        def need(ok: bool, text: str) -> None:
+            if not ok:
+                raise ConfigError(text)
+
+        for name in (
+            "dt", "transport_delay", "servo_bandwidth", "servo_damping", "tau_hat", "filter_low",
+            "filter_high", "force_noise", "harmonic3", "harmonic5", "harmonic7",
+            "encoder_resolution", "lvdt_resolution", "lvdt_noise", "stroke",
+        ):  # fmt: skip
+            need(math.isfinite(getattr(self, name)), f"{name} = {getattr(self, name)!r} must be finite")
+        need(self.dt > 0, f"dt = {self.dt!r} s must be > 0")
+        need(self.physics_substeps >= 1, f"physics_substeps = {self.physics_substeps!r} must be an integer >= 1")
+        need(self.actuator in ACTUATORS, f"actuator = {self.actuator!r}; choose one of {', '.join(ACTUATORS)}")
+        need(self.transport_delay >= 0, f"transport_delay = {self.transport_delay!r} s must be >= 0")
+        need(self.servo_bandwidth > 0, f"servo_bandwidth = {self.servo_bandwidth!r} Hz must be > 0")
+        need(self.servo_damping > 0, f"servo_damping = {self.servo_damping!r} must be > 0")
+        need(
+            -1 <= self.predictor_order <= MAX_PREDICTOR_ORDER,
+            f"predictor_order = {self.predictor_order!r}; accepted: -1 (none) or 0..{MAX_PREDICTOR_ORDER}",
+        )
+        need(
+            self.predictor_points >= max(self.predictor_order + 1, 1),
+            f"predictor_points = {self.predictor_points!r} must be >= predictor_order + 1 = {self.predictor_order + 1}",
+        )
+        need(
+            0 < self.filter_low < self.filter_high < 0.5 / self.dt,
+            f"filter band [{self.filter_low!r}, {self.filter_high!r}] Hz must satisfy 0 < low < high < "
+            f"Nyquist {0.5 / self.dt:g} Hz",
+        )
+        need(1 <= self.filter_order <= 8, f"filter_order = {self.filter_order!r}; accepted 1..8")
+        for name in ("force_noise", "harmonic3", "harmonic5", "harmonic7", "encoder_resolution",
+                     "lvdt_resolution", "lvdt_noise"):  # fmt: skip
+            need(getattr(self, name) >= 0, f"{name} = {getattr(self, name)!r} must be >= 0")
+        need(self.stroke > 0, f"stroke = {self.stroke!r} m must be > 0")
+
+    # -- contract -----------------------------------------------------------------
+    def validate(self, params: ModelParams) -> None:
+        if params.M1 <= 0 or params.C1 < 0:
+            raise ConfigError(
+                f"the substructured split needs M1 = M - M2 > 0 and C1 = C - C2 >= 0; got "
+                f"M1 = {params.M1:g} kg (M = {params.M:g}, M2 = {params.M2:g}) and "
+                f"C1 = {params.C1:g} kg/s (C = {params.C:g}, C2 = {params.C2:g})"
+            )
+        if 1.0 / params.fe < self.dt:
+            raise ConfigError(f"forcing period 1/fe = {1 / params.fe:g} s is shorter than dt = {self.dt:g} s")
+        if self.force_filter and not (self.filter_low < params.fe < self.filter_high):
+            raise ConfigError(
+                f"forcing frequency fe = {params.fe:g} Hz lies outside the force filter's band "
+                f"[{self.filter_low:g}, {self.filter_high:g}] Hz"
+            )
+
+    def options(self) -> dict[str, Any]:
+        return asdict(self)
+
+    def steps_per_period(self, params: ModelParams) -> int:
+        return steps_per_period(params.fe, self.dt)
+
+    def step(self, params: ModelParams) -> float:
+        """Controller step actually used [s]."""
+        return 1.0 / (params.fe * self.steps_per_period(params))
+
+    @property
+    def n_cmd(self) -> int:
+        """Length of the command delay line (covers the transport delay with margin)."""
+        return int(math.ceil(1.1 * self.transport_delay / self.dt)) + 4
+
+    @property
+    def _n_pred(self) -> int:
+        return self.predictor_points
+
+    @property
+    def _n_sections(self) -> int:
+        return self.filter_order
+
+    def state_length(self) -> int:
+        return state_offsets(self.n_cmd, self._n_pred, self._n_sections)[5]
+
+    def initial_state(self, params, y, ydot, theta, thetadot) -> np.ndarray:
+        """Rest of the loop consistent with ``y* = x = y`` (histories constant, filter empty)."""
+        o_cmd, o_cmdd, o_yh, o_fh, o_z, length = state_offsets(self.n_cmd, self._n_pred, self._n_sections)
+        s = np.zeros(length)
+        s[:6] = (y, ydot, theta, thetadot, y, ydot)
+        s[7] = s[8] = y
+        s[9] = (params.M2 + params.m) * ydot + params.C2 * y + params.m * params.l * thetadot * math.sin(theta)
+        s[o_cmd:o_cmdd] = y
+        s[o_cmdd:o_yh] = ydot
+        s[o_yh:o_fh] = y
+        return s
+
+    # -- delays -------------------------------------------------------------------
+    def effective_delay(self, frequency: float) -> float:
+        """Total effective delay [s] of ``x`` behind ``y*`` at ``frequency`` [Hz]."""
+        return effective_delay(
+            self.actuator, self.transport_delay, self.servo_bandwidth, self.servo_damping, self.dt, frequency
+        )
+
+    def horizon(self, params: ModelParams) -> float:
+        """Prediction horizon ``tau_hat`` [s] used at these parameters."""
+        return self.tau_hat if self.tau_hat >= 0 else self.effective_delay(params.fe)
+
+    def filter_sos(self, params: ModelParams) -> np.ndarray:
+        return design_force_filter(self.filter_low, self.filter_high, self.filter_order, self.step(params))
+
+    def filter_delay(self, params: ModelParams) -> float:
+        """Equivalent delay [s] of the force filter at the forcing frequency (0 when off)."""
+        if not self.force_filter:
+            return 0.0
+        return phase_to_delay(filter_phase(self.filter_sos(params), params.fe, self.step(params)), params.fe)
+
+    # -- running ------------------------------------------------------------------
+    def _run(self, params, state, transient, n_rec, trace_rows, stride):
+        self.validate(params)
+        state = np.ascontiguousarray(state, dtype=np.float64).copy()
+        if state.shape != (self.state_length(),):
+            raise ConfigError(
+                f"state of length {state.shape} does not fit these backend options "
+                f"(expected {self.state_length()}); start from initial_state"
+            )
+        n = self.steps_per_period(params)
+        dt = self.step(params)
+        ticks = (transient + n_rec) * n
+        rng = np.random.default_rng([self.seed, int(state[6])])
+        noise_f = rng.standard_normal(ticks) * self.force_noise
+        noise_x = rng.standard_normal(ticks) * self.lvdt_noise
+        use_pred = self.predictor_order >= 0
+        order = max(self.predictor_order, 0)
+        w, wd = predictor_weights(order, self.predictor_points, self.horizon(params), dt)
+        sos = self.filter_sos(params)
+        wf, _ = predictor_weights(order, self.predictor_points, self.filter_delay(params), dt)
+        records = np.full((n_rec, N_RECORD_COLUMNS), np.nan)
+        trace = np.full((trace_rows, N_TRACE_COLUMNS), np.nan)
+        code, done = substructured_loop(
+            state,
+            params.kernel_array(),
+            params.M2,
+            params.C2,
+            params.alpha,
+            params.fe,
+            n,
+            self.physics_substeps,
+            ACT_SERVO if self.actuator == "servo" else ACT_HERMITE,
+            self.transport_delay if self.actuator != "ideal" else 0.0,
+            2.0 * math.pi * self.servo_bandwidth,
+            self.servo_damping,
+            self.n_cmd,
+            w,
+            wd,
+            use_pred,
+            sos,
+            self.force_filter,
+            wf,
+            self.force_filter and use_pred,
+            self.encoder_resolution,
+            self.lvdt_resolution,
+            noise_f,
+            noise_x,
+            np.array([self.harmonic3, self.harmonic5, self.harmonic7]),
+            self.stroke,
+            HF_RATIO,
+            HF_ACCEL_FLOOR,
+            transient,
+            records,
+            trace,
+            stride,
+        )
+        return code, int(done), state, records, trace
+
+    def run_point(self, params, state, transient_periods, record_periods) -> PointRun:
+        code, done, state, records, _ = self._run(params, state, transient_periods, record_periods, 0, 1)
+        return PointRun(records, state, Status.from_code(code), done)
+
+    def trace(self, params, state, periods, stride=1) -> pd.DataFrame:
+        """Time series of ``periods`` forcing periods, every ``stride``-th tick.
+
+        Columns (SI): ``t, Fe, y`` (= y*), ``ydot, command`` (the held command
+        ``c_k``), ``x, xdot`` (true actuator), ``x_meas`` (LVDT), ``theta``
+        (encoder, theta_x), ``theta_true, thetadot, Fs`` (load cell), ``Fs_true``
+        (Eq. 4), ``F_fb`` (force fed to the model) and ``sync_error``
+        (``y* - x_meas``). Rows after an instability are dropped; the status is
+        in ``df.attrs["status"]``.
+        """
+        n = self.steps_per_period(params)
+        rows = (periods * n + stride - 1) // stride
+        code, done, _, _, trace = self._run(params, state, periods, 0, rows, stride)
+        df = pd.DataFrame(trace, columns=list(TRACE_COLUMNS)).dropna(subset=["t"]).reset_index(drop=True)
+        df.attrs["status"] = Status.from_code(code).value
+        df.attrs["periods_done"] = done
+        return df

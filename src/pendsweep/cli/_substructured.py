@@ -1,0 +1,85 @@
+"""``pendsweep trace`` and ``pendsweep sync``: hybrid-test time series and their accuracy."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from ..backends import BACKENDS, make_backend
+from ..errors import ConfigError
+from ..hybrid import read_trace, run_trace, write_trace
+from ..params import ModelParams
+from ..sync import TABLE_I, analyse
+from ._app import FINITE, main
+from ._sweep import _finite, _key_value
+
+
+def _model(alpha, fe, M, C, sets) -> ModelParams:
+    changes = {k: _finite(k, v) for k, v in _key_value(sets, "--set").items()}
+    for key, value in (("alpha", alpha), ("fe", fe), ("M", M), ("C", C)):
+        if value is not None:
+            changes[key] = value
+    return ModelParams.from_mapping(changes)
+
+
+@main.command("trace")
+@click.argument("output", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--alpha", type=FINITE, default=5.0, show_default=True, help="Forcing amplitude [N] (Fig. 9 PO: 5).")
+@click.option("--fe", type=FINITE, default=2.2, show_default=True, help="Forcing frequency [Hz].")
+@click.option("--M", "M_", type=FINITE, default=None, help="Oscillator mass M = M1 + M2 [kg] (default 10.9).")
+@click.option("--C", "C_", type=FINITE, default=None, help="Oscillator damping C = C1 + C2 [kg/s] (default 20).")
+@click.option("--set", "sets", multiple=True, metavar="NAME=VALUE", help="Any other model parameter, SI units (e.g. --set M1=10 --set M2=0.9).")
+@click.option("--backend", type=click.Choice(sorted(BACKENDS)), default="substructured", show_default=True, help="Simulation backend.")
+@click.option("-B", "--backend-option", "backend_opts", multiple=True, metavar="KEY=VALUE", help="Backend option, e.g. -B transport_delay=0.02 -B predictor_order=-1 (see docs/substructured.md).")
+@click.option("--periods", type=click.IntRange(1, 100000), default=22, show_default=True, help="Forcing periods written (22 periods at 2.2 Hz = 10 s).")
+@click.option("--transient-periods", type=click.IntRange(0, 100000), default=100, show_default=True, help="Forcing periods run first and discarded.")
+@click.option("--stride", type=click.IntRange(1, 100000), default=1, show_default=True, help="Write every stride-th controller step.")
+@click.option("--y0", type=FINITE, default=0.0, show_default=True, help="Initial displacement [m].")
+@click.option("--theta0", type=FINITE, default=0.1, show_default=True, help="Initial pendulum angle [rad].")
+@click.option("--thetadot0", type=FINITE, default=0.0, show_default=True, help="Initial pendulum rate [rad/s].")
+def trace_command(output, alpha, fe, M_, C_, sets, backend, backend_opts, periods, transient_periods, stride, y0, theta0, thetadot0):
+    """Write a time series of one hybrid run to OUTPUT (parquet).
+
+    Substructured columns (SI): t, Fe, y (= y*), ydot, command, x, xdot, x_meas,
+    theta (encoder, theta_x), theta_true, thetadot, Fs (load cell), Fs_true,
+    F_fb (force fed to the model), sync_error (y* - x_meas).
+    """
+    params = _model(alpha, fe, M_, C_, sets)
+    b = make_backend(backend, **_key_value(backend_opts, "--backend-option"))
+    df = run_trace(b, params, (y0, 0.0, theta0, thetadot0), transient_periods, periods, stride)
+    status = df.attrs.get("status", "ok")
+    meta = {"params": params.to_dict(), "backend": backend, "backend_options": b.options(),
+            "transient_periods": transient_periods, "periods": periods, "stride": stride,
+            "initial": [y0, 0.0, theta0, thetadot0], "status": status}  # fmt: skip
+    if backend == "substructured":
+        meta["effective_delay_s"] = b.effective_delay(params.fe)
+        meta["tau_hat_s"] = b.horizon(params) if b.predictor_order >= 0 else None
+        meta["filter_delay_s"] = b.filter_delay(params)
+    write_trace(df.reset_index(drop=True), output, meta)
+    click.echo(f"wrote {len(df)} rows to {output} (status {status})")
+    if backend == "substructured" and len(df):
+        click.echo(
+            f"effective delay {1e3 * meta['effective_delay_s']:.2f} ms at {params.fe:g} Hz; "
+            f"sync ratio max|y*-x|/max|y*| = {100 * df['sync_error'].abs().max() / df['y'].abs().max():.2f} %"
+        )
+
+
+@main.command("sync")
+@click.argument("trace", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), default=None, help="Figure file (default: TRACE with .png).")
+@click.option("--reference", type=click.Choice(sorted(TABLE_I)), default=None, help="Also print the paper's Table I row.")
+@click.option("--window", type=click.FloatRange(0.01, 1e4), default=1.0, show_default=True, help="Sliding window of the online delay estimate [s].")
+def sync_command(trace, output, reference, window):
+    """Synchronisation accuracy of a substructured TRACE (Table I, J1-J3, Fig. 12 panels)."""
+    from ..figures.hybrid import draw_sync
+
+    df, meta = read_trace(trace)
+    if meta.get("backend") != "substructured":
+        raise ConfigError(f"{str(trace)!r} was written by backend {meta.get('backend')!r}; sync needs a substructured trace")
+    report = analyse(df, window)
+    for line in report.lines(reference):
+        click.echo(line)
+    path = output or Path(trace).with_suffix(".png")
+    draw_sync(df, report, path)
+    click.echo(f"wrote {path}")
