@@ -20,13 +20,12 @@ from click.testing import CliRunner  # noqa: E402
 from scipy.optimize import brentq  # noqa: E402
 
 from pendsweep.cli import main  # noqa: E402
-from pendsweep.data import Record, read_free_swing, read_record, write_record  # noqa: E402
+from pendsweep.data import read_free_swing, read_record, write_record  # noqa: E402
 from pendsweep.diagnose import EFFECTS, Replay, diagnose, synthesize  # noqa: E402
 from pendsweep.diagnose.damping import fit_damping  # noqa: E402
 from pendsweep.diagnose.effects import nominal_values  # noqa: E402
 from pendsweep.diagnose.replay import midpoint_values, noise_std  # noqa: E402
 from pendsweep.diagnose.signatures import cross_correlation, decrement_fit, envelope  # noqa: E402
-from pendsweep.errors import ConfigError  # noqa: E402
 from pendsweep.kernels import driven_trace, emulated_trace, pendulum_trace  # noqa: E402
 from pendsweep.params import FIG9_PO, TABLE_IV  # noqa: E402
 
@@ -49,6 +48,14 @@ FORCED_RANGES = {
     "pendulum_length": ("x", 1.03, 1.08),
     "angle_offset": ("abs", 0.01, 0.02),
 }
+SUB_RANGES = dict(
+    FORCED_RANGES,
+    angle_offset=("abs", 0.05, 0.08),  # theta is one of four compared channels here
+    actuator_delay=("abs", 0.006, 0.012),
+    platform_mass=("x", 1.3, 1.6),
+    platform_damping=("x", 1.3, 1.6),
+    force_sensor_gain=("x", 1.15, 1.3),
+)
 TONE2 = (2.0, 1.3)
 
 
@@ -192,15 +199,25 @@ def test_forced_hidden_effect_found(cause):
     check_found(rec, cause, truth)
 
 
-def test_forced_pendulum_damping_is_named_as_damping_family():
+@pytest.mark.parametrize("cause", list(SUB_RANGES))
+def test_substructured_hidden_effect_found(cause):
+    truth = draw(cause, SUB_RANGES, FIG9_PO, seed=6)
+    rec = synthesize("substructured", FIG9_PO, {cause: truth}, duration=12, rate=250, seed=6, theta_init=0.3, transient=20, tone2=TONE2)
+    check_found(rec, cause, truth)
+
+
+@pytest.mark.parametrize("kind, min_gain", [("forced", 0.5), ("substructured", 0.02)])
+def test_pendulum_damping_is_named_as_damping_family(kind, min_gain):
     """At a near-constant swing amplitude only the dissipated energy per cycle is seen:
-    a hidden viscous term is named as one of the three damping laws, and the report flags the tie."""
+    a hidden viscous term is named as one of the three damping laws, and the report flags the tie.
+    On substructured records the gain is small: y, y_cmd and Fs, which the pendulum damping
+    hardly moves, dominate the error (documented limitation)."""
     from pendsweep.diagnose.report import ambiguous_with
 
-    rec = synthesize("forced", FIG9_PO, {"viscous_damping": 4 * N.b2}, duration=16, rate=250, seed=2, theta_init=0.3, transient=20, tone2=TONE2)
+    rec = synthesize(kind, FIG9_PO, {"viscous_damping": 4 * N.b2}, duration=16, rate=250, seed=2, theta_init=0.3, transient=20, tone2=TONE2)
     d = diagnose(Replay(rec))
     family = {"coulomb_friction", "viscous_damping", "quadratic_drag"}
-    assert d.cause in family and d.to_json()["gain"] >= 0.5
+    assert d.cause in family and d.to_json()["gain"] >= min_gain
     assert set(ambiguous_with(d)) & family
 
 
@@ -212,9 +229,10 @@ def test_clean_free_decay_gives_none(seed):
     assert js["cause"] == "none" and js["estimate"] == {} and js["gain"] == 0.0
 
 
+@pytest.mark.parametrize("kind", ["forced", "substructured"])
 @pytest.mark.parametrize("seed", [21, 22, 23])
-def test_clean_forced_gives_none(seed):
-    rec = synthesize("forced", FIG9_PO, {}, duration=16, rate=250, seed=seed, theta_init=0.3, transient=20, tone2=TONE2)
+def test_clean_forced_and_substructured_give_none(kind, seed):
+    rec = synthesize(kind, FIG9_PO, {}, duration=12, rate=250, seed=seed, theta_init=0.3, transient=20, tone2=TONE2)
     assert diagnose(Replay(rec)).cause == "none"
 
 
@@ -322,7 +340,36 @@ def test_cli_synth_is_seeded(tmp_path):
     assert res.exit_code == 2 and "does not apply to kind 'free_decay'" in res.output
 
 
-def test_substructured_kind_not_replayable_yet():
-    df = pd.DataFrame({"t": np.arange(100) * 1e-3, "theta": np.sin(np.arange(100)), "y": 0.0, "Fe": 0.0, "y_cmd": 0.0})
-    with pytest.raises(ConfigError, match="cannot be replayed"):
-        Replay(Record(df, "substructured"))
+def test_substructured_loop_converges_to_the_complete_system():
+    """With an ideal actuator and a perfect load cell the loop is Eq. (11) with the
+    feedback force one tick old: the gap to the emulated system closes as O(dt)."""
+    from pendsweep.kernels import substructured_replay
+
+    p = FIG9_PO
+    T = 2.0
+    gaps = []
+    dts = np.array([2e-3, 1e-3, 5e-4])
+    for dt in dts:
+        n = int(round(T / dt)) + 1
+        t = np.arange(n) * dt
+        f = p.alpha * np.sin(2 * np.pi * p.fe * t)
+        fh = p.alpha * np.sin(2 * np.pi * p.fe * (t[:-1] + dt / 2))
+        ref = np.empty((n, 4))
+        driven_trace(np.array([0.0, 0.0, 0.5, 0.0]), p.kernel_array(), f, fh, 1.0, dt, ref)
+        out = np.empty((n, 4))
+        cmd, cmdd = np.zeros(n), np.zeros(n)
+        substructured_replay(np.array([0.0, 0.0, 0.5, 0.0]), p.kernel_array(), p.M1, p.C1, p.M2, p.C2, f, fh, 1.0, 1.0, 0.0, dt, 2, cmd, cmdd, 0, out)
+        gaps.append(np.max(np.abs(out[:, 1] - ref[:, 2])))
+    slope = np.polyfit(np.log(dts), np.log(gaps), 1)[0]
+    assert 0.8 < slope < 1.2 and gaps[-1] < 1e-3
+
+
+def test_substructured_extended_model_moves_the_totals(tmp_path):
+    rec = synthesize("substructured", FIG9_PO, {"platform_mass": 1.3}, duration=12, rate=250, seed=1, theta_init=0.3, transient=20, tone2=TONE2)
+    write_record(rec, tmp_path / "s.parquet")
+    res = CliRunner().invoke(main, ["diagnose", str(tmp_path / "s.parquet"), "--report", str(tmp_path / "rep")])
+    assert res.exit_code == 0, res.output
+    ext = json.loads((tmp_path / "rep" / "extended.json").read_text())
+    assert ext["M2"] == pytest.approx(1.3, rel=0.02)
+    # The numerical mass M1 is code; the complete system's M = M1 + true M2.
+    assert ext["M"] - ext["M2"] == pytest.approx(FIG9_PO.M1, rel=1e-9)

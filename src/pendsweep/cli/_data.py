@@ -28,7 +28,7 @@ def _pairs(items: tuple[str, ...], what: str) -> dict[str, float]:
 @click.argument("data", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--json", "json_out", type=click.Path(dir_okay=False, path_type=Path), help="Write the verdict JSON here.")
 @click.option("--report", "report_dir", type=click.Path(file_okay=False, path_type=Path), help="Write report.md, figures and extended.json into this folder.")
-@click.option("--horizon", type=FINITE, default=None, help="Short-horizon segment length for forced records [s] (default 4).")
+@click.option("--horizon", type=FINITE, default=None, help="Short-horizon segment length for forced and substructured records [s] (default 4).")
 @click.option("--train-fraction", type=FINITE, default=0.6, show_default=True, help="Leading fraction of the record used for fitting [-].")
 @click.option("--cause", "causes", multiple=True, help="Restrict the candidates to these causes (repeatable).")
 @click.option("--jobs", type=int, default=1, show_default=True, help="Candidates fitted in parallel.")
@@ -60,16 +60,16 @@ def diagnose(data, json_out, report_dir, horizon, train_fraction, causes, jobs, 
 
 @main.command()
 @click.argument("out", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--kind", type=click.Choice(["free_decay", "forced"]), default="free_decay", show_default=True, help="Record kind.")
+@click.option("--kind", type=click.Choice(["free_decay", "forced", "substructured"]), default="free_decay", show_default=True, help="Record kind.")
 @click.option("--effect", "effects", multiple=True, help="Hidden effect CAUSE=VALUE, VALUE in the parameter's unit (e.g. viscous_damping=2e-4 [kg m^2/s]); repeatable.")
-@click.option("--param", "params", multiple=True, help="Nominal model override NAME=VALUE in SI units (default Table IV, Fig. 9(a) forcing for forced records); repeatable.")
+@click.option("--param", "params", multiple=True, help="Nominal model override NAME=VALUE in SI units (default Table IV; Fig. 9(a) forcing for forced and substructured records); repeatable.")
 @click.option("--duration", type=FINITE, default=20.0, show_default=True, help="Record length [s].")
 @click.option("--rate", type=FINITE, default=500.0, show_default=True, help="Sample rate [Hz].")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of the sensor noise.")
 @click.option("--theta-init", type=FINITE, default=1.0, show_default=True, help="Initial pendulum angle [rad].")
 @click.option("--thetadot-init", type=FINITE, default=0.0, show_default=True, help="Initial pendulum velocity [rad/s].")
-@click.option("--transient", type=FINITE, default=30.0, show_default=True, help="Forced records: time simulated before recording [s].")
-@click.option("--tone2", type=(FINITE, FINITE), default=None, help="Forced records: a second force tone AMPLITUDE [N] FREQUENCY [Hz].")
+@click.option("--transient", type=FINITE, default=30.0, show_default=True, help="Forced and substructured records: time simulated before recording [s].")
+@click.option("--tone2", type=(FINITE, FINITE), default=None, help="Forced and substructured records: a second force tone AMPLITUDE [N] FREQUENCY [Hz].")
 def synth(out, kind, effects, params, duration, rate, seed, theta_init, thetadot_init, transient, tone2):
     """Write a seeded measured-like record (format v1) with hidden effects.
 

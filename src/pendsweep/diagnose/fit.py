@@ -117,6 +117,8 @@ def fit_model(replay: Replay, cause: str | None, nuisance: dict[str, float] | No
     if cause is not None:
         eff = effect(cause)
         s0 = start_value(replay, eff)
+        # trf's scaling freezes a variable that starts on its bound: start just inside.
+        s0 = max(s0, eff.lower + 0.05 * eff.scale)
         names.append(eff.param)
         start.append(s0)
         scale.append(max(abs(s0), eff.scale))

@@ -11,6 +11,16 @@
     its start (Savitzky-Golay estimates of y, ydot, theta, thetadot): a
     short-horizon prediction error (multiple shooting with states taken from
     the data).
+``substructured``
+    The substructuring loop (Eq. (3) numerical model, load-cell feedback of
+    Eq. (4), actuator ``x(t) = y_cmd(t - tau)``) driven by the recorded
+    ``Fe``, in short-horizon segments started from the measured ``y_cmd``
+    (as ``y*``) and pendulum state, with the measured command history
+    feeding the delayed actuator. Compared channels: y (= x), theta, y_cmd
+    and Fs when recorded. The numerical mass and damping ``M1 = M - M2``,
+    ``C1 = C - C2`` are code, so ``platform_mass``/``platform_damping``
+    change the physical M2/C2 only and ``oscillator_mass``/``_damping`` the
+    numerical M1/C1.
 
 The first ``train_fraction`` of the record trains the fits; the rest is held out.
 """
@@ -23,12 +33,12 @@ import numpy as np
 from scipy.signal import savgol_filter
 
 from ..errors import ConfigError
-from ..kernels import driven_trace, pendulum_trace
+from ..kernels import driven_trace, pendulum_trace, substructured_replay
 from ..data import Record
 from .effects import nominal_values
 
 #: Channels compared per kind.
-CHANNELS = {"free_decay": ("theta",), "forced": ("y", "theta")}
+CHANNELS = {"free_decay": ("theta",), "forced": ("y", "theta"), "substructured": ("y", "theta", "y_cmd", "Fs")}
 #: Default short-horizon segment length for forced records [s].
 DEFAULT_HORIZON = 4.0
 TRAIN_FRACTION = 0.6
@@ -84,7 +94,7 @@ class Replay:
             raise ConfigError(f"train fraction {train_fraction!r} must lie in [0.1, 0.9]")
         self.record = record
         self.kind = record.kind
-        self.channels = CHANNELS[record.kind]
+        self.channels = tuple(c for c in CHANNELS[record.kind] if c in record.data)
         self.dt = record.dt
         self.n = len(record.data)
         self.t = record.t - record.t[0]
@@ -100,7 +110,7 @@ class Replay:
         if self.n_train < 20 or self.n - self.n_train < 20:
             raise ConfigError(f"{record.name}: {self.n} samples are too few to split into training and held-out parts")
         self.nominal = nominal_values(record.params, record.tau)
-        est = {c: smoothed(record.channel(c), self.dt) for c in CHANNELS["forced"] if c in record.data}
+        est = {c: smoothed(record.channel(c), self.dt) for c in ("y", "theta", "y_cmd") if c in record.data}
         if self.kind == "free_decay":
             self.horizon = self.t[-1]
             self.segments = [(0, self.n)]
@@ -112,9 +122,12 @@ class Replay:
             h = int(round(self.horizon / self.dt))
             self.segments = _cut(0, self.n_train, h) + _cut(self.n_train, self.n, h)
             starts = np.array([s for s, _ in self.segments])
-            self.states0 = np.stack(
-                [est["y"][0][starts], est["y"][1][starts], est["theta"][0][starts], est["theta"][1][starts]], axis=1
-            )
+            # y* of a substructured test is the command (no prediction).
+            y = est["y_cmd" if self.kind == "substructured" else "y"]
+            self.states0 = np.stack([y[0][starts], y[1][starts], est["theta"][0][starts], est["theta"][1][starts]], axis=1)
+            if self.kind == "substructured":
+                self.command = np.ascontiguousarray(record.channel("y_cmd"))
+                self.command_slope = np.ascontiguousarray(est["y_cmd"][1])
             self.force = record.channel("Fe")
             self.force_half = midpoint_values(self.force)
             self.initial_guess = {}
@@ -138,6 +151,8 @@ class Replay:
             state = np.array([v["theta_init"] - theta0, v["thetadot_init"]])
             pendulum_trace(state, p, self.dt, out)
             return {"theta": out[:, 0] + theta0}
+        if self.kind == "substructured":
+            return self._loop(v, p, theta0, stop)
         sim = np.empty((stop, 4))
         for k, (i0, i1) in enumerate(self.segments):
             if i0 >= stop:
@@ -147,6 +162,26 @@ class Replay:
             state[2] -= theta0
             driven_trace(state, p, self.force[i0:i1], self.force_half[i0 : i1 - 1], v["gain"], self.dt, sim[i0:i1])
         return {"y": sim[:, 0], "theta": sim[:, 2] + theta0}
+
+    def _loop(self, v: dict[str, float], p: np.ndarray, theta0: float, stop: int) -> dict[str, np.ndarray]:
+        sim = np.empty((stop, 4))
+        nom = self.nominal
+        # M1, C1 are the numerical model's code values: M and C move them, M2 and C2 do not.
+        M1 = v["M"] - nom["M2"]
+        C1 = v["C"] - nom["C2"]
+        if M1 <= 0:
+            sim.fill(np.nan)
+        for k, (i0, i1) in enumerate(self.segments):
+            if i0 >= stop or M1 <= 0:
+                break
+            state = self.states0[k].copy()
+            state[2] -= theta0
+            cmd, cmdd = self.command.copy(), self.command_slope.copy()
+            substructured_replay(
+                state, p, M1, C1, v["M2"], v["C2"], self.force, self.force_half, v["gain"], v["gain_Fs"],
+                v["tau"], self.dt, 1, cmd, cmdd, i0, sim[i0 : min(i1, stop)],
+            )
+        return {"y": sim[:, 0], "theta": sim[:, 1] + theta0, "Fs": sim[:, 2], "y_cmd": sim[:, 3]}
 
     # -- errors -----------------------------------------------------------------
     def residuals(self, sim: dict[str, np.ndarray], part: slice) -> np.ndarray:

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..data import UNITS
 from .effects import EFFECTS, model_file, split_values
 from .fit import DELTA_BIC, FLOOR_SHARE, P_VALUE, Diagnosis
 from .signatures import backbone, cross_correlation, extrema, residual_spectrum, summarize
@@ -26,6 +27,12 @@ def extended_params(diag: Diagnosis) -> dict[str, float]:
     values = dict(diag.replay.nominal)
     if diag.best is not None:
         values.update(diag.best.estimate)
+        # The numerical M1 = M - M2 and C1 = C - C2 are code: a different
+        # platform changes the complete system's totals.
+        if diag.best.param == "M2":
+            values["M"] = diag.replay.nominal["M"] - diag.replay.nominal["M2"] + values["M2"]
+        if diag.best.param == "C2":
+            values["C"] = diag.replay.nominal["C"] - diag.replay.nominal["C2"] + values["C2"]
     model, _ = split_values(values)
     return model_file(model)
 
@@ -56,7 +63,7 @@ def _figures(diag: Diagnosis, outdir: Path) -> list[Path]:
     t = rp.t
     ext = diag.best or diag.nominal
     files = []
-    units = {"theta": "rad", "y": "m"}
+    units = UNITS
 
     fig, axes = plt.subplots(len(rp.channels), 1, figsize=(10, 3 * len(rp.channels)), sharex=True, squeeze=False)
     for ax, c in zip(axes[:, 0], rp.channels):

@@ -138,7 +138,8 @@ def summarize(replay, nominal_sim: dict[str, np.ndarray]) -> dict[str, Any]:
             out[f"{c}_xcorr_Fe_peak_lag_s"] = float(best.lag)
             out[f"{c}_xcorr_Fe_peak"] = float(best["corr"])
     ex = extrema(t, theta, min_amplitude=3 * replay.noise["theta"] + 0.005)
-    if len(ex) >= 3:
+    # Decay and backbone describe a free swing; a forced swing's amplitude is set by the forcing.
+    if replay.kind == "free_decay" and len(ex) >= 3:
         mids = 0.5 * (ex.theta.to_numpy()[:-1] + ex.theta.to_numpy()[1:])
         out["theta_turning_point_midline"] = float(np.median(mids))
         env = pd.DataFrame({"t": ex.t, "amplitude": np.abs(ex.theta - np.median(mids))})

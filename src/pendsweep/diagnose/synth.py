@@ -18,7 +18,7 @@ import pandas as pd
 
 from ..data import Record
 from ..errors import ConfigError
-from ..kernels import driven_trace, pendulum_trace
+from ..kernels import driven_trace, pendulum_trace, substructured_replay
 from ..params import (
     ADC_STEP,
     ELECTRICAL_NOISE,
@@ -65,7 +65,7 @@ def synthesize(
 
     Parameters
     ----------
-    kind : {"free_decay", "forced"}
+    kind : {"free_decay", "forced", "substructured"}
     nominal : ModelParams
         The model written to the record's metadata (the user's belief).
     effects : dict
@@ -81,15 +81,16 @@ def synthesize(
     transient : float
         Forced records: seconds simulated before recording starts.
     oversample : int
-        Truth integration steps per sample.
+        Truth integration steps per sample (rig substeps per controller tick
+        for substructured records, whose controller runs at the sample rate).
     sensors : Sensors
     tone2 : (float, float), optional
         A second force tone ``(amplitude [N], frequency [Hz])`` added to
         ``alpha sin(2 pi fe t)``. A single steady tone cannot separate the
         oscillator's K from M (only ``K - M omega_e^2`` is seen); two tones can.
     """
-    if kind not in ("free_decay", "forced"):
-        raise ConfigError(f"synth kind {kind!r}; choose free_decay or forced")
+    if kind not in ("free_decay", "forced", "substructured"):
+        raise ConfigError(f"synth kind {kind!r}; choose free_decay, forced or substructured")
     for name, value in (("duration", duration), ("rate", rate)):
         if not (math.isfinite(value) and value > 0):
             raise ConfigError(f"{name} = {value!r} must be positive and finite")
@@ -116,6 +117,8 @@ def synthesize(
         theta = fine[::oversample, 0]
         data = pd.DataFrame({"t": t, "theta": _measure(theta + chain["theta0"], sensors.theta_step, 0.0, rng)})
         return Record(data, kind, nominal, name="synth")
+    if kind == "substructured":
+        return _substructured(model, chain, nominal, n, dt, rate, transient, theta_init, thetadot_init, oversample, sensors, rng, tone2)
     n_tr = int(round(transient * rate)) * oversample
     m = (n - 1) * oversample + 1 + n_tr
     tf = np.arange(m) * h
@@ -134,3 +137,44 @@ def synthesize(
         }
     )
     return Record(data, kind, nominal, forcing={"alpha": model.alpha, "fe": model.fe}, name="synth")
+
+
+def _substructured(model, chain, nominal, n, dt, rate, transient, theta_init, thetadot_init, oversample, sensors, rng, tone2):
+    """A substructuring test: the loop at the sample rate, the rig ``oversample`` times finer.
+
+    The numerical model uses the nominal split ``M1 = M - M2``, ``C1 = C - C2``
+    (code values); the platform has the truth's M2, C2. ``Fe`` and ``y_cmd``
+    are controller signals and recorded exactly; x (as y), theta and Fs are
+    measured. The loop feeds back the noise-free force.
+    """
+    n_tr = int(round(transient * rate))
+    m = n + n_tr
+    t = np.arange(m) * dt
+    tones = [(model.alpha, model.fe)] + ([tuple(map(float, tone2))] if tone2 else [])
+    force = sum(a * np.sin(2.0 * math.pi * f * t) for a, f in tones)
+    half = sum(a * np.sin(2.0 * math.pi * f * (t[:-1] + 0.5 * dt)) for a, f in tones)
+    M1 = model.M - nominal.M2 if "M" in _changed(model, nominal) else nominal.M1
+    C1 = model.C - nominal.C2 if "C" in _changed(model, nominal) else nominal.C1
+    cmd, cmdd = np.zeros(m), np.zeros(m)
+    out = np.empty((m, 4))
+    substructured_replay(
+        np.array([0.0, 0.0, theta_init, thetadot_init]), model.kernel_array(), M1, C1, model.M2, model.C2,
+        force, half, chain["gain"], chain["gain_Fs"], chain["tau"], dt, oversample, cmd, cmdd, 0, out,
+    )
+    rec = out[n_tr:]
+    data = pd.DataFrame(
+        {
+            "t": np.arange(n) * dt,
+            "theta": _measure(rec[:, 1] + chain["theta0"], sensors.theta_step, 0.0, rng),
+            "y": _measure(rec[:, 0], sensors.y_step, sensors.y_noise, rng),
+            "Fe": force[n_tr:],
+            "y_cmd": rec[:, 3],
+            "Fs": _measure(rec[:, 2], sensors.force_step, sensors.force_noise, rng),
+        }
+    )
+    return Record(data, "substructured", nominal, tau=0.0, forcing={"alpha": model.alpha, "fe": model.fe}, name="synth")
+
+
+def _changed(model: ModelParams, nominal: ModelParams) -> set[str]:
+    a, b = model.to_dict(), nominal.to_dict()
+    return {k for k in a if a[k] != b[k]}
