@@ -92,13 +92,13 @@ def _figures(diag: Diagnosis, outdir: Path) -> list[Path]:
     ax = axes[0]
     for c in rp.channels:
         for fit, style in ((diag.nominal, "-"), (ext, "--")):
-            res = fit.sim[c] - rp.meas[c]
+            res = (fit.sim[c] - rp.meas[c]) / rp.scale[c]
             if np.all(np.isfinite(res)):
                 sp = residual_spectrum(res, rp.dt)
                 ax.semilogy(sp.frequency, sp.psd, style, lw=0.8, label=f"{c} {'nominal' if fit is diag.nominal else 'extended'}")
     ax.set_xlim(0, min(20.0, 0.5 / rp.dt))
     ax.set_xlabel("f [Hz]")
-    ax.set_title("residual spectra", fontsize=9)
+    ax.set_title("spectra of residual / std(channel)", fontsize=9)
     ax.legend(fontsize=7)
     k = 1
     if rp.kind != "free_decay":
@@ -114,7 +114,8 @@ def _figures(diag: Diagnosis, outdir: Path) -> list[Path]:
         k += 1
     ex_m = extrema(t, rp.meas["theta"], 3 * rp.noise["theta"] + 0.005)
     ax, ax2 = axes[k], axes[k + 1]
-    for label, theta, style in (("measured", rp.meas["theta"], "k."), ("nominal", diag.nominal.sim["theta"], "C0-"), ("extended", ext.sim["theta"], "C3--")):
+    lines = ("-", "--") if rp.kind == "free_decay" else ("", "")  # forced swings: clouds, not curves
+    for label, theta, style in (("measured", rp.meas["theta"], "k."), ("nominal", diag.nominal.sim["theta"], "C0." + lines[0]), ("extended", ext.sim["theta"], "C3x" + lines[1])):
         if not np.all(np.isfinite(theta)):
             continue
         ex = extrema(t, theta, 3 * rp.noise["theta"] + 0.005)

@@ -2,7 +2,8 @@
 
 * residual spectra (Welch);
 * cross-correlation of residuals with the input at lags (a peak away from
-  lag 0 points to a delay);
+  lag 0 points to a delay), and of the actuator displacement x with its
+  command in substructured records (the lag of the peak is the delay);
 * decay envelope and decrement per half cycle against amplitude: a constant
   decrement is Coulomb friction, one proportional to amplitude is viscous,
   one growing as amplitude squared is air drag;
@@ -137,6 +138,10 @@ def summarize(replay, nominal_sim: dict[str, np.ndarray]) -> dict[str, Any]:
             best = xc.iloc[int(np.argmax(np.abs(xc["corr"].to_numpy())))]
             out[f"{c}_xcorr_Fe_peak_lag_s"] = float(best.lag)
             out[f"{c}_xcorr_Fe_peak"] = float(best["corr"])
+    if replay.kind == "substructured":
+        # The actuator's delay seen directly: x against the command.
+        xc = cross_correlation(replay.meas["y"], replay.meas["y_cmd"], replay.dt, 0.05)
+        out["x_lags_y_cmd_by_s"] = float(xc.lag[int(np.argmax(xc["corr"].to_numpy()))])
     ex = extrema(t, theta, min_amplitude=3 * replay.noise["theta"] + 0.005)
     # Decay and backbone describe a free swing; a forced swing's amplitude is set by the forcing.
     if replay.kind == "free_decay" and len(ex) >= 3:
