@@ -18,6 +18,7 @@ from pendsweep.errors import ConfigError
 from pendsweep.hybrid import run_trace
 from pendsweep.kernels import RECORD_COLUMNS
 from pendsweep.params import ENCODER_RESOLUTION, FIG9_PO, FIG11A
+from pendsweep.results import read_results
 from pendsweep.sweep import SweepConfig, run_sweep
 from pendsweep.sync import sync_ratio, xcorr_delay
 
@@ -93,7 +94,7 @@ def _critical_transport_delay(p, bandwidth=30.0, zeta=0.7) -> float:
     return min(taus)
 
 
-def test_delay_instability_is_a_status_not_a_crash():
+def test_delay_instability_is_a_status_not_a_crash(tmp_path):
     p = FIG9_PO
     # Subtract the hold (dt/2) the loop adds on top of the transport delay.
     critical = _critical_transport_delay(p) - 0.5e-3
@@ -108,7 +109,8 @@ def test_delay_instability_is_a_status_not_a_crash():
         backend_options={"predictor_order": -1, "transport_delay": 1.3 * critical},
         transient_periods=20, record_periods=5,
     )  # fmt: skip
-    df = run_sweep(config)
+    run_sweep(config, tmp_path / "unstable.parquet")
+    df, _ = read_results(tmp_path / "unstable.parquet")
     assert set(df["status"]) == {"unstable"}
     assert np.all(np.isfinite(df[list(RECORD_COLUMNS)].to_numpy()))
 
@@ -214,3 +216,15 @@ def test_sweep_seed_reaches_the_backend_noise():
     assert SweepConfig(**base, seed=11, backend_options={"seed": 3}).make_backend().seed == 3
     a, b = (run_sweep(SweepConfig(**base, seed=s)) for s in (1, 2))
     assert not np.array_equal(a["y_sec"].to_numpy(), b["y_sec"].to_numpy())
+
+
+@pytest.mark.parametrize("options", [{}, {"force_filter": True}, {"actuator": "delay", "transport_delay": 0.005}])
+def test_continuing_a_state_is_seamless(options):
+    """Without noise, 6 periods in one call and 3 + 3 in two calls give the same bytes."""
+    b = make_backend("substructured", **QUIET, **options)
+    s0 = b.initial_state(FIG9_PO, 0, 0, 0.1, 0)
+    one = b.run_point(FIG9_PO, s0, 3, 3)
+    half = b.run_point(FIG9_PO, s0, 3, 0)
+    two = b.run_point(FIG9_PO, half.state, 0, 3)
+    assert one.state.tobytes() == two.state.tobytes()
+    assert one.records.tobytes() == two.records.tobytes()

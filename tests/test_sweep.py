@@ -49,7 +49,7 @@ def test_long_form_schema_and_row_count():
     df = run_sweep(config)
     assert len(df) == 2 * 3 * 3
     expected = ["alpha", "direction", "point", "start", "period", "theta_peak", "theta_absmax", "y_sec",
-                "ydot_sec", "theta_sec", "thetadot_sec", "y_absmax", "rotations", "kicked", "status"]
+                "ydot_sec", "theta_sec", "thetadot_sec", "y_absmax", "rotations", "kicked", "status", "motion"]
     assert list(df.columns) == expected
     down = df[df.direction == "down"]
     assert down.groupby("point").size().to_dict() == {0: 3, 1: 3, 2: 3}

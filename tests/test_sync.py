@@ -72,6 +72,8 @@ def test_trace_and_sync_commands(tmp_path):
     res = runner.invoke(main, ["sync", str(out), "-o", str(fig), "--reference", "PO"])
     assert res.exit_code == 0, res.output
     assert "Table I ratio" in res.output and "paper, Table I PO" in res.output and fig.stat().st_size > 0
+    delays = pd.read_csv(tmp_path / "sync_delay.csv")
+    assert list(delays.columns) == ["t", "delay"] and len(delays) > 10
     report = analyse(df)
     assert f"{report.ratio:.2f} %" in res.output
 

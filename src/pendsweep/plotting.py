@@ -9,6 +9,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+from matplotlib.patches import Patch  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
@@ -72,6 +73,8 @@ def draw_bifurcation(
         if len(bad):
             top = np.pi if observable.startswith("theta") else ax.get_ylim()[1]
             ax.scatter(bad, np.full(len(bad), top), color="red", marker="x", s=20, label="diverged/unstable")
+    if all("motion" in df for df, _ in results):
+        draw_motion_bands(ax, results, parameter)
     spec = PARAM_SPECS[parameter]
     ax.set_xlabel(f"{parameter} [{spec.unit}]  ({spec.doc})")
     ax.set_ylabel(OBSERVABLES[observable])
@@ -101,3 +104,68 @@ def plot_files(paths: Sequence[Path], output: Path, observable: str = "theta_pea
     fig.savefig(output, dpi=150)
     plt.close(fig)
     return output
+
+
+#: Band colour per motion family (``periodic-n`` share one colour and carry n as text).
+MOTION_COLOURS = {
+    "semi-trivial": "0.85",
+    "transient": "tab:olive",
+    "quasi-periodic": "tab:green",
+    "periodic": "tab:cyan",
+    "chaotic": "tab:red",
+    "rotating": "tab:purple",
+    "n/a": "white",
+    "mixed": "0.4",
+}
+
+
+def point_motions(df: pd.DataFrame, branches: pd.Series, parameter: str) -> dict[str, pd.Series]:
+    """Per branch, one motion per parameter value (``mixed`` where multistarts disagree)."""
+    out = {}
+    for branch in branches.unique():
+        sel = df[branches == branch]
+        per_value = sel.groupby(parameter)["motion"].agg(lambda m: m.iloc[0] if m.nunique() == 1 else "mixed")
+        out[branch] = per_value.sort_index()
+    return out
+
+
+def draw_motion_bands(ax: plt.Axes, results, parameter: str) -> None:
+    """Shade the motion classes (``pendsweep.classify``) behind a bifurcation diagram.
+
+    The first branch (continue up, else whatever comes first) shades the full
+    height, with the class written in each band; every branch also gets a
+    thin strip along the bottom, so hysteresis and coexisting attractors
+    (strips of different colour at one value, or ``mixed`` multistarts) show.
+    """
+    strips = {}
+    for df, meta in results:
+        strips.update(point_motions(df, branch_label(df, meta), parameter))
+    names = sorted(strips, key=lambda b: list(BRANCH_STYLE).index(b) if b in BRANCH_STYLE else 99)
+    transform = ax.get_xaxis_transform()
+    span = max(float(m.index.max() - m.index.min()) for m in strips.values()) or 1.0
+    families: set[str] = set()
+    for row, branch in enumerate(names):
+        motions = strips[branch]
+        values = motions.index.to_numpy(dtype=float)
+        half = np.diff(values).min() / 2 if values.size > 1 else 0.5
+        edges = np.concatenate([[values[0] - half], (values[1:] + values[:-1]) / 2, [values[-1] + half]])
+        labels = motions.to_numpy()
+        start = 0
+        for k in range(1, labels.size + 1):
+            if k < labels.size and labels[k] == labels[start]:
+                continue
+            family = labels[start].split("-")[0] if labels[start].startswith("periodic") else labels[start]
+            colour = MOTION_COLOURS.get(family, "white")
+            lo, hi = edges[start], edges[k]
+            ax.fill_between([lo, hi], 0.01 + 0.03 * row, 0.035 + 0.03 * row, color=colour, transform=transform,
+                            linewidth=0)
+            families.add(family)
+            if row == 0:
+                ax.axvspan(lo, hi, color=colour, alpha=0.15, linewidth=0, zorder=0)
+                if hi - lo > 0.04 * span:  # name only the bands wide enough to read
+                    ax.text((lo + hi) / 2, 0.98, labels[start].replace("periodic-", "period-"), transform=transform,
+                            ha="center", va="top", fontsize=6, rotation=90, clip_on=True)
+            start = k
+        ax.text(edges[-1], 0.022 + 0.03 * row, f" {branch}", transform=transform, fontsize=6, va="center")
+    handles = [Patch(color=MOTION_COLOURS[f], label=f) for f in MOTION_COLOURS if f in families]
+    ax.add_artist(ax.legend(handles=handles, loc="upper right", fontsize=6, title="motion", title_fontsize=6))

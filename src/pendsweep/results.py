@@ -35,6 +35,20 @@ def config_hash(config: dict[str, Any]) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
+def run_metadata(kind: str, config: dict[str, Any], **extra: Any) -> dict[str, Any]:
+    """Provenance stored with a result file: kind, resolved config, its hash, version, time."""
+    from ._version import __version__
+
+    return {
+        "kind": kind,
+        "config": config,
+        "config_hash": config_hash(config),
+        "package_version": __version__,
+        **extra,
+        "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+    }
+
+
 def check_writable(path: Path) -> None:
     """Raise :class:`ResultsError` unless a file can be created at ``path``."""
     path = Path(path)
@@ -175,7 +189,8 @@ class ResultStore:
         df = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
         if not df.empty:
             # A part may repeat a unit only if a crash hit between two renames; keep one copy.
-            df = df.drop_duplicates(subset=self.key_columns + ["period"], keep="last")
+            unit_rows = self.key_columns + [c for c in ("period",) if c in df.columns]
+            df = df.drop_duplicates(subset=unit_rows, keep="last")
         return df, states
 
     # -- writing --------------------------------------------------------------

@@ -31,7 +31,6 @@ import dataclasses
 import math
 import queue
 import threading
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterable, Iterator
@@ -40,12 +39,12 @@ import numpy as np
 import pandas as pd
 from joblib import Parallel, delayed
 
-from ._version import __version__
 from .backends import BACKENDS, PointRun, make_backend
+from .classify import classify_run
 from .errors import ConfigError
 from .kernels import RECORD_COLUMNS
 from .params import ENCODER_RESOLUTION, PARAM_SPECS, ModelParams, check_value
-from .results import ResultStore, config_hash
+from .results import ResultStore, run_metadata
 from .status import Status
 
 MODES = ("continue", "fresh", "multistart")
@@ -234,6 +233,7 @@ class PointResult:
     value: float
     run: PointRun
     kicked: bool
+    motion: str = ""
 
     @property
     def key(self) -> str:
@@ -252,6 +252,7 @@ def result_rows(config: SweepConfig, r: PointResult) -> pd.DataFrame:
     df.insert(4, "period", np.arange(n, dtype=np.int64))
     df["kicked"] = r.kicked
     df["status"] = r.run.status.value
+    df["motion"] = r.motion
     return df
 
 
@@ -275,7 +276,7 @@ def _continue_branch(config, backend, direction, indices, resume) -> Iterator[Po
             state[2] += config.kick
             kicked = True
         run = backend.run_point(params, state, config.transient_periods, config.record_periods)
-        yield PointResult(direction, i, 0, config.values[i], run, kicked)
+        yield PointResult(direction, i, 0, config.values[i], run, kicked, classify_run(backend, params, run).label)
         ok = run.status is Status.OK
         state = run.state if ok else None
         kick_next = ok and float(np.nanmax(run.records[:, 1])) < config.rest_threshold
@@ -291,7 +292,7 @@ def _independent_point(config, backend, i, starts_done) -> list[PointResult]:
         run = backend.run_point(
             params, backend.initial_state(params, *ic), config.transient_periods, config.record_periods
         )
-        out.append(PointResult("none", i, s, config.values[i], run, False))
+        out.append(PointResult("none", i, s, config.values[i], run, False, classify_run(backend, params, run).label))
     return out
 
 
@@ -335,16 +336,7 @@ def _stream(tasks: list[Callable[[], Iterable[Any]]], n_jobs: int) -> Iterator[A
 
 
 def sweep_metadata(config: SweepConfig) -> dict[str, Any]:
-    cfg = config.to_dict()
-    return {
-        "kind": "sweep",
-        "config": cfg,
-        "config_hash": config_hash(cfg),
-        "package_version": __version__,
-        "backend": config.backend,
-        "seed": config.seed,
-        "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
-    }
+    return run_metadata("sweep", config.to_dict(), backend=config.backend, seed=config.seed)
 
 
 def run_sweep(

@@ -130,9 +130,10 @@ class SubstructuredBackend:
     ``C2 = 10 kg/s``); the rig is the pendulum on the platform ``(M2, C2)``
     driven at the pivot by the actuator. Records hold ``y*`` and the encoder
     angle ``theta_x`` (quantised), as in Fig. 11; ``thetadot_sec`` is the true
-    rate. State: ``(y*, y*', theta, theta', x, x', ticks, x_k-1, x_k-2,``
-    command delay line, command slopes, ``y*`` history, filtered-force
-    history, filter registers ``)``; see the kernel module.
+    rate. State: ``(y*, y*', theta, theta', x, x', ticks, x_k-1, x_k-2,
+    x', x, theta' sin(theta) at the last load-cell sample,`` command delay
+    line, command slopes, ``y*`` history, filtered-force history, filter
+    registers ``)``; see the kernel module.
 
     Attributes
     ----------
@@ -273,24 +274,16 @@ class SubstructuredBackend:
         """Length of the command delay line (covers the transport delay with margin)."""
         return int(math.ceil(1.1 * self.transport_delay / self.dt)) + 4
 
-    @property
-    def _n_pred(self) -> int:
-        return self.predictor_points
-
-    @property
-    def _n_sections(self) -> int:
-        return self.filter_order
-
     def state_length(self) -> int:
-        return state_offsets(self.n_cmd, self._n_pred, self._n_sections)[5]
+        return state_offsets(self.n_cmd, self.predictor_points, self.filter_order)[5]
 
     def initial_state(self, params, y, ydot, theta, thetadot) -> np.ndarray:
         """Rest of the loop consistent with ``y* = x = y`` (histories constant, filter empty)."""
-        o_cmd, o_cmdd, o_yh, o_fh, o_z, length = state_offsets(self.n_cmd, self._n_pred, self._n_sections)
+        o_cmd, o_cmdd, o_yh, o_fh, o_z, length = state_offsets(self.n_cmd, self.predictor_points, self.filter_order)
         s = np.zeros(length)
         s[:6] = (y, ydot, theta, thetadot, y, ydot)
         s[7] = s[8] = y
-        s[9] = (params.M2 + params.m) * ydot + params.C2 * y + params.m * params.l * thetadot * math.sin(theta)
+        s[9:12] = (ydot, y, thetadot * math.sin(theta))
         s[o_cmd:o_cmdd] = y
         s[o_cmdd:o_yh] = ydot
         s[o_yh:o_fh] = y
@@ -384,7 +377,8 @@ class SubstructuredBackend:
         Columns (SI): ``t, Fe, y`` (= y*), ``ydot, command`` (the held command
         ``c_k``), ``x, xdot`` (true actuator), ``x_meas`` (LVDT), ``theta``
         (encoder, theta_x), ``theta_true, thetadot, Fs`` (load cell), ``Fs_true``
-        (Eq. 4), ``F_fb`` (force fed to the model) and ``sync_error``
+        (the load cell without noise: Eq. (4) averaged over the last tick),
+        ``F_fb`` (force fed to the model) and ``sync_error``
         (``y* - x_meas``). Rows after an instability are dropped; the status is
         in ``df.attrs["status"]``.
         """

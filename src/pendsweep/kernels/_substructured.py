@@ -38,7 +38,8 @@ e. **Rig** over ``[t_k, t_k+1]`` in ``substeps`` RK4 substeps:
 
 State vector (float64, see :func:`state_offsets`): ``0 y*, 1 y*', 2 theta,
 3 theta' (true), 4 x, 5 x', 6 ticks done since the initial state, 7-8 x at
-the two previous ticks, 9 P at the previous tick``, then the command delay line ``c`` (most recent
+the two previous ticks, 9-11 x', x and theta' sin(theta) at the previous
+load-cell sample``, then the command delay line ``c`` (most recent
 first), the command derivatives, the ``y*`` history, the filtered-force
 history and the filter's ``2 n_sections`` delay registers.
 """
@@ -89,11 +90,16 @@ TRACE_COLUMNS = (
     "sync_error",
 )
 N_TRACE_COLUMNS = len(TRACE_COLUMNS)
-N_HEAD = 10  # scalar slots before the histories
+N_HEAD = 12  # scalar slots before the histories
 S_TICKS = 6
 S_XPREV1 = 7
 S_XPREV2 = 8
-S_MOMENTUM = 9
+# x', x and theta' sin(theta) at the previous load-cell sample: P = (M2 + m) x'
+# + C2 x + m l theta' sin(theta) is rebuilt from them with the current
+# parameters, so a sweep of m, l, M2 or C2 does not kick the force.
+S_P_XD = 9
+S_P_X = 10
+S_P_TH = 11
 #: Periods in a row with dominant high-frequency content that flag instability.
 HF_PERIODS = 2
 
@@ -287,7 +293,8 @@ def substructured_loop(
     z = state[o_z : o_z + 2 * n_sec]
     ys, yds, th, thd, x, xd = state[0], state[1], state[2], state[3], state[4], state[5]
     xp1, xp2 = state[S_XPREV1], state[S_XPREV2]
-    mom_prev = state[S_MOMENTUM]
+    mom_prev = ms * state[S_P_XD] + C2 * state[S_P_X] + m * l * state[S_P_TH]
+    p_xd, p_x, p_th = state[S_P_XD], state[S_P_X], state[S_P_TH]
     servo = actuator == ACT_SERVO
     ws2 = ws * ws
     tzw = 2.0 * zeta * ws
@@ -310,7 +317,8 @@ def substructured_loop(
             # a. sensors. The load cell is read through an integrating ADC: the
             # sample is the mean of F_s over the last tick, which is exact as a
             # momentum difference because F_s = dP/dt (see the module docstring).
-            mom = ms * xd + C2 * x + m * l * thd * math.sin(th)
+            p_xd, p_x, p_th = xd, x, thd * math.sin(th)
+            mom = ms * p_xd + C2 * p_x + m * l * p_th
             fs_true = (mom - mom_prev) / dt
             mom_prev = mom
             ph = we * tk
@@ -490,5 +498,5 @@ def substructured_loop(
     state[0], state[1], state[2], state[3], state[4], state[5] = ys, yds, th, thd, x, xd
     state[S_TICKS] += tick
     state[S_XPREV1], state[S_XPREV2] = xp1, xp2
-    state[S_MOMENTUM] = mom_prev
+    state[S_P_XD], state[S_P_X], state[S_P_TH] = p_xd, p_x, p_th
     return status, done

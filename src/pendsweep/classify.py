@@ -1,0 +1,284 @@
+"""Motion classification of a sweep point from its recorded periods.
+
+Every sweep unit (direction, point, start) gets one ``motion`` label:
+
+``semi-trivial``
+    max |theta| over the record below one encoder pulse (0.0013 rad).
+``periodic-n`` (n = 1..8)
+    The stroboscopic section repeats after n forcing periods: every
+    component of the normalised section differs from the one n periods
+    earlier by less than :data:`PERIODIC_TOL`. The smallest such n is given;
+    the pendulum's subharmonic swing at fe/2 is ``periodic-2``.
+``chaotic``
+    The largest Lyapunov exponent is positive beyond its uncertainty:
+    mean > :data:`LYAP_SIGMAS` standard errors and > :data:`LYAP_FLOOR`
+    per forcing period (two-trajectory estimate, below).
+``rotating``
+    Net full rotations occur in the record and the motion is not chaotic
+    (a periodic or quasi-periodic rotation; chaotic tumbling is ``chaotic``).
+``quasi-periodic``
+    Not periodic, Lyapunov exponent zero within its uncertainty, and the
+    section points of an extended record (:data:`EXTEND_PERIODS` more
+    periods) lie on closed curves: taking every n-th point (n = 1..8), the
+    points sorted by angle about their centre surround it (no angular gap
+    over :data:`CURVE_MAX_GAP`) and their radius varies smoothly (mean
+    jump between neighbours below :data:`CURVE_ROUGHNESS` of the mean
+    radius).
+``transient``
+    Not settled: the pendulum is still coming to rest (last recorded period
+    below one encoder pulse, earlier ones above), or the record is not
+    periodic but the extended record becomes
+    periodic, or the Lyapunov exponent is negative beyond its uncertainty
+    (still converging to an orbit), or neither a closed curve nor chaos is
+    found. Lengthen ``transient_periods`` to resolve such points.
+``n/a``
+    The point did not finish (status ``diverged`` or ``unstable``).
+
+The normalised section is ``(y/Y, ydot/(w_e Y), theta, thetadot/w_p)`` with
+``Y`` the largest |y| of the record, so all four components are
+dimensionless and of the size of theta in rad; theta differences are
+wrapped to (-pi, pi].
+
+Lyapunov exponent: two trajectories, started from the first recorded
+section state and a copy with theta moved by :data:`LYAP_D0`, are advanced
+one forcing period at a time; after each period the log of the separation
+growth (normalised section norm) is a sample and the copy is pulled back to
+distance :data:`LYAP_D0` along the separation (Benettin). The estimate is
+the mean over ``max(record, LYAP_MIN_PERIODS)`` periods [1/period]; its
+standard error comes from means over blocks of :data:`LYAP_BLOCK` periods,
+which absorbs the samples' short-range correlation. Backends with more
+state than ``(y, ydot, theta, thetadot)`` restart their own states from
+rest at the section, an approximation.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from .backends import PointRun
+from .kernels._layout import REC_ROTATIONS, REC_THETA_ABSMAX, REC_THETADOT_SEC, REC_Y_ABSMAX, REC_Y_SEC
+from .params import ENCODER_RESOLUTION, ModelParams
+from .status import Status
+
+#: Largest section mismatch [normalised, ~rad] still counted as a repeat.
+PERIODIC_TOL = 1e-3
+#: Longest period searched [forcing periods].
+MAX_PERIOD = 8
+#: Initial separation of the two trajectories [normalised, ~rad].
+LYAP_D0 = 1e-8
+#: Shortest window of the Lyapunov estimate [forcing periods].
+LYAP_MIN_PERIODS = 60
+#: Block length of the standard error [forcing periods].
+LYAP_BLOCK = 5
+#: "Positive beyond its uncertainty": this many standard errors ...
+LYAP_SIGMAS = 3.0
+#: ... and at least this rate [1/forcing period].
+LYAP_FLOOR = 0.01
+#: Periods simulated past the record to look for closed curves or late settling.
+EXTEND_PERIODS = 200
+#: Closed-curve test: largest mean radius jump between angular neighbours [fraction of mean radius].
+CURVE_ROUGHNESS = 0.1
+#: Closed-curve test: largest angular gap between neighbours [rad].
+CURVE_MAX_GAP = math.pi / 2
+
+_SEC = slice(REC_Y_SEC, REC_THETADOT_SEC + 1)  # record columns y_sec, ydot_sec, theta_sec, thetadot_sec
+_THETA = 2
+
+
+@dataclass(frozen=True)
+class Motion:
+    """A classification and its evidence.
+
+    Attributes
+    ----------
+    label : str
+        One of the labels of the module docstring.
+    period : int
+        n of ``periodic-n`` (or of a periodic rotation), else 0.
+    lyapunov, lyapunov_err : float
+        Largest Lyapunov exponent and its standard error [1/forcing period]
+        (NaN when not needed: semi-trivial and periodic points).
+    """
+
+    label: str
+    period: int = 0
+    lyapunov: float = math.nan
+    lyapunov_err: float = math.nan
+
+
+@dataclass(frozen=True)
+class Evidence:
+    """What the extended record adds: sections ``(m, 4)`` and Lyapunov samples ``(k,)``."""
+
+    sections: np.ndarray
+    log_stretch: np.ndarray
+
+
+def section_scales(records: np.ndarray, params: ModelParams) -> np.ndarray:
+    """Divisors ``(Y, w_e Y, 1, w_p)`` that make the section dimensionless."""
+    Y = float(np.nanmax(records[:, REC_Y_ABSMAX])) or 1.0
+    return np.array([Y, params.omega_e * Y, 1.0, params.omega_p])
+
+
+def section_difference(a: np.ndarray, b: np.ndarray, scales: np.ndarray) -> np.ndarray:
+    """Normalised ``a - b`` of section states (last axis of length >= 4), theta wrapped."""
+    d = (np.asarray(a)[..., :4] - np.asarray(b)[..., :4]) / scales
+    d[..., _THETA] = _wrapped(d[..., _THETA])
+    return d
+
+
+def _wrapped(theta: np.ndarray) -> np.ndarray:
+    """Angles [rad] wrapped to (-pi, pi]."""
+    return np.angle(np.exp(1j * theta))
+
+
+def section_period(sections: np.ndarray, scales: np.ndarray, tol: float = PERIODIC_TOL) -> int:
+    """Smallest n <= MAX_PERIOD with the section repeating after n periods (0: none).
+
+    ``sections`` is ``(n_periods, 4)``; at least two repeats of the n-cycle
+    are required.
+    """
+    for n in range(1, MAX_PERIOD + 1):
+        if sections.shape[0] < 2 * n + 1:
+            break
+        mismatch = np.abs(section_difference(sections[n:], sections[:-n], scales)).max()
+        if mismatch < tol:
+            return n
+    return 0
+
+
+def lyapunov_estimate(log_stretch: np.ndarray, block: int = LYAP_BLOCK) -> tuple[float, float]:
+    """Mean [1/period] and block standard error of per-period log-stretch samples."""
+    n_blocks = log_stretch.size // block
+    if n_blocks < 2:
+        return float(np.mean(log_stretch)), math.inf
+    means = log_stretch[: n_blocks * block].reshape(n_blocks, block).mean(axis=1)
+    return float(np.mean(log_stretch)), float(means.std(ddof=1) / math.sqrt(n_blocks))
+
+
+def two_trajectory_log_stretch(
+    advance: Callable[[np.ndarray], tuple[np.ndarray, float]],
+    state: np.ndarray,
+    periods: int,
+    scales: np.ndarray,
+    d0: float = LYAP_D0,
+) -> np.ndarray:
+    """Per-period log separation growth of two nearby trajectories (Benettin).
+
+    Parameters
+    ----------
+    advance : callable
+        ``advance(state) -> (state one forcing period later, max |theta| [rad]
+        during that period)``; the first four state entries are ``y, ydot,
+        theta, thetadot``, later ones follow along.
+    state : ndarray
+        Start of the reference trajectory.
+    periods : int
+    scales : float64[4]
+        Section normalisation (:func:`section_scales`).
+
+    Returns
+    -------
+    float64[<= periods]
+        ``log(|separation| / d0)`` after each period. The estimate stops
+        early when the reference pendulum comes to rest (max |theta| below
+        one encoder pulse), where Coulomb friction chatters and the
+        separation means nothing, or when a trajectory diverges.
+    """
+    reference = np.array(state, dtype=np.float64)
+    copy = reference.copy()
+    copy[_THETA] += d0 * scales[_THETA]
+    out = []
+    for _ in range(periods):
+        (reference, swing), (copy, _) = advance(reference), advance(copy)
+        full = copy - reference
+        full[:4] = section_difference(copy, reference, scales) * scales
+        distance = float(np.linalg.norm(full[:4] / scales))
+        if swing < ENCODER_RESOLUTION or not (math.isfinite(distance) and distance > 0):
+            break
+        out.append(math.log(distance / d0))
+        copy = reference + full * (d0 / distance)
+    return np.array(out)
+
+
+def closed_curve(sections: np.ndarray, scales: np.ndarray) -> bool:
+    """Whether the section points lie on closed curves (every n-th point, some n <= 8)."""
+    u = sections[:, :4] / scales
+    u[:, _THETA] = _wrapped(u[:, _THETA])
+    for n in range(1, MAX_PERIOD + 1):
+        branch = u[::n]
+        if branch.shape[0] < 12:
+            break
+        centred = branch - branch.mean(axis=0)
+        # The curve's plane: its two principal directions.
+        _, _, vt = np.linalg.svd(centred, full_matrices=False)
+        plane = centred @ vt[:2].T
+        angle = np.arctan2(plane[:, 1], plane[:, 0])
+        order = np.argsort(angle)
+        radius = np.hypot(plane[order, 0], plane[order, 1])
+        gaps = np.diff(np.concatenate([angle[order], angle[order[:1]] + 2 * math.pi]))
+        jumps = np.abs(np.diff(np.concatenate([radius, radius[:1]])))
+        if gaps.max() < CURVE_MAX_GAP and jumps.mean() < CURVE_ROUGHNESS * radius.mean():
+            return True
+    return False
+
+
+def classify_records(
+    records: np.ndarray,
+    scales: np.ndarray,
+    status: Status = Status.OK,
+    evidence: Callable[[], Evidence] | None = None,
+) -> Motion:
+    """Classify one unit from its per-period records (``pendsweep.kernels.RECORD_COLUMNS``).
+
+    ``evidence`` is called only when the record itself is not decisive
+    (not at rest, not periodic); without it such points are ``transient``.
+    """
+    if status is not Status.OK or not np.isfinite(records).all():
+        return Motion("n/a")
+    if records[:, REC_THETA_ABSMAX].max() < ENCODER_RESOLUTION:
+        return Motion("semi-trivial")
+    rotating = bool(np.any(records[:, REC_ROTATIONS] != 0))
+    n = section_period(records[:, _SEC], scales)
+    if n:
+        return Motion("rotating" if rotating else f"periodic-{n}", n)
+    if evidence is None or records[-1, REC_THETA_ABSMAX] < ENCODER_RESOLUTION:
+        return Motion("transient")  # undecidable here, or still coming to rest
+    ev = evidence()
+    lle, err = lyapunov_estimate(ev.log_stretch)
+    if lle > LYAP_SIGMAS * err and lle > LYAP_FLOOR:
+        return Motion("chaotic", 0, lle, err)
+    if rotating:
+        return Motion("rotating", 0, lle, err)
+    tail = ev.sections[-4 * MAX_PERIOD :]
+    if section_period(tail, scales) or (lle < -LYAP_SIGMAS * err and lle < -LYAP_FLOOR):
+        return Motion("transient", 0, lle, err)
+    if closed_curve(ev.sections, scales):
+        return Motion("quasi-periodic", 0, lle, err)
+    return Motion("transient", 0, lle, err)
+
+
+def backend_evidence(backend, params: ModelParams, run: PointRun, scales: np.ndarray) -> Evidence:
+    """Extend the record and estimate the Lyapunov exponent with the point's backend."""
+    extension = backend.run_point(params, run.state, 0, EXTEND_PERIODS)
+    sections = extension.records[:, _SEC] if extension.status is Status.OK else np.empty((0, 4))
+
+    def advance(state: np.ndarray) -> tuple[np.ndarray, float]:
+        one = backend.run_point(params, state, 0, 1)
+        return one.state, float(one.records[0, REC_THETA_ABSMAX])
+
+    start = backend.initial_state(params, *run.records[0, _SEC])
+    periods = max(run.records.shape[0], LYAP_MIN_PERIODS)
+    return Evidence(sections, two_trajectory_log_stretch(advance, start, periods, scales))
+
+
+def classify_run(backend, params: ModelParams, run: PointRun) -> Motion:
+    """Classify a finished sweep point, re-simulating with its backend when needed."""
+    scales = section_scales(run.records, params) if run.status is Status.OK else np.ones(4)
+    return classify_records(
+        run.records, scales, run.status, lambda: backend_evidence(backend, params, run, scales)
+    )

@@ -1,0 +1,440 @@
+"""Hopf boundary of the semi-trivial solution, alpha_H(omega_hat, M), three ways.
+
+The semi-trivial solution is the pendulum at rest (theta = 0) while the
+oscillator is driven, ``(M + m) y'' + C y' + K y = alpha sin(w_e t)``. Near
+``w_e = 2 w_p`` it loses stability to a pendulum swinging at ``w_e / 2``;
+the forcing amplitude where this happens, as a function of
+``omega_hat = w_e / (2 w_p)``, is the boundary of Fig. 10 of the paper.
+
+Methods
+-------
+``analytic``
+    Eq. (12) of the paper, from small-angle averaging with ``b1 = b3 = 0``:
+    ``alpha_H = l w_e^2 (M + m) sqrt((kappa/w_e)^2 + sigma^2) sqrt((kappa_p/w_e)^2 + sigma_p^2)``
+    with ``kappa = C/(M + m)``, ``kappa_p = b2/(m l^2)``,
+    ``sigma = (w_nm/w_e)^2 - 1``, ``sigma_p = 2[(w_p/w_e)^2 - 1/4]``.
+``floquet``
+    The linearised pendulum about the exact semi-trivial solution is the
+    damped Mathieu equation ``theta'' + kappa_p theta' + (w_p^2 + y''(t)/l) theta = 0``
+    whose pump ``y''(t)`` is the exact steady response of the linear
+    oscillator. Its monodromy matrix over one forcing period is integrated
+    (RK4, coefficients exact at the stage times) and ``alpha_H`` is the
+    smallest alpha where the largest Floquet multiplier modulus crosses 1
+    (brentq on ``log max|mu|``). This is exact for the smooth model
+    (``b1 = 0``); ``b3 theta'^2`` has no linear part and does not enter.
+    Coulomb friction ``b1`` cannot be linearised (it makes rest "sticky")
+    and is ignored by both linear methods.
+``simulate``
+    The paper's experimental protocol on any registered backend: at a trial
+    alpha the oscillator is settled on its semi-trivial response with the
+    pendulum at rest, the pendulum is kicked by ``kick`` rad, and the
+    per-period envelope max|theta| is recorded for ``periods`` forcing
+    periods. The growth rate is the least-squares slope of ``log`` envelope
+    against period number; alpha is *above* the boundary when it is positive
+    (or the pendulum rotates). Bisection on alpha brackets the boundary to
+    ``tol`` N.
+
+Why a long, fitted window: the pendulum's viscous decay is tiny
+(``kappa_p T ~ 2e-3`` per period), so just below the boundary the two
+Floquet multipliers are a nearly degenerate complex pair and a kicked
+pendulum *beats*, its envelope rising 10-50 times over 50-200 periods before
+falling back. Judging "moving or not" over a short record, or by a threshold
+on the amplitude, puts the boundary too low; the log-envelope slope over a
+window several beat periods long (600 periods by default) is negative below
+and positive above, because the true rates are ``-kappa_p T / 2`` and
+``log|mu| > 0`` respectively.
+
+With Coulomb friction (``b1 > 0``) rest is locally stable at any alpha, so
+the simulated boundary depends on the kick; the kick is stored with every
+row.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Iterable
+
+import numpy as np
+import pandas as pd
+from scipy.optimize import brentq
+
+from .backends import make_backend
+from .errors import ConfigError
+from .kernels import N_RECORD_COLUMNS
+from .kernels._layout import REC_ROTATIONS, REC_THETA_ABSMAX, REC_THETA_SEC, REC_THETADOT_SEC
+from .kernels._mathieu import mathieu_monodromy
+from .params import ENCODER_RESOLUTION, ModelParams, check_value
+from .results import ResultStore, run_metadata
+from .status import Status
+
+METHODS = ("analytic", "floquet", "simulate")
+#: Envelope [rad] up to which the kicked pendulum is treated as linear (or 4 kicks, if larger).
+LINEAR_LIMIT = 0.1
+KEY_COLUMNS = ["mass_point", "point", "method"]
+#: Columns of a Hopf scan result, in order.
+COLUMNS = [
+    "omega_hat", "fe", "M", "method", "alpha_H", "status", "multiplier",
+    "growth_below", "growth_above", "bracket_lo", "bracket_hi", "kick", "runs", "backend",
+]
+
+
+# -- the semi-trivial solution --------------------------------------------------
+def fe_for_omega_hat(params: ModelParams, omega_hat: float) -> float:
+    """Forcing frequency [Hz] giving ``omega_hat = w_e / (2 w_p)``."""
+    return omega_hat * params.omega_p / math.pi
+
+
+def semi_trivial_response(params: ModelParams) -> complex:
+    """Complex amplitude ``Y`` [m] of ``y(t) = Im(Y exp(i w_e t))`` with theta = 0.
+
+    Raises ConfigError for a cubic spring (``k3 != 0``), whose response is
+    not a single harmonic.
+    """
+    if params.k3 != 0.0:
+        raise ConfigError(f"k3 = {params.k3:g} N/m^3: the Hopf boundary methods need a linear spring (k3 = 0)")
+    w = params.omega_e
+    return params.alpha / complex(params.K - (params.M + params.m) * w * w, params.C * w)
+
+
+def alpha_hopf_analytic(params: ModelParams) -> float:
+    """Eq. (12): boundary amplitude [N] at ``params.fe`` (``b1, b3`` ignored)."""
+    w = params.omega_e
+    total = params.M + params.m
+    kappa = params.C / total
+    kappa_p = params.b2 / (params.m * params.l**2)
+    sigma = (params.omega_nm / w) ** 2 - 1.0
+    sigma_p = 2.0 * ((params.omega_p / w) ** 2 - 0.25)
+    return params.l * w * w * total * math.hypot(kappa / w, sigma) * math.hypot(kappa_p / w, sigma_p)
+
+
+def floquet_multipliers(params: ModelParams, steps: int = 200) -> np.ndarray:
+    """The two Floquet multipliers (complex, shape ``(2,)``) of theta = 0 at ``params.alpha``."""
+    w = params.omega_e
+    Y = semi_trivial_response(params)
+    # y = Im(Y e^{iwt}) = Re(Y) sin + Im(Y) cos, and y'' = -w^2 y.
+    pump = -w * w / params.l
+    monodromy = mathieu_monodromy(
+        params.g / params.l,
+        params.b2 / (params.m * params.l**2),
+        pump * Y.real,
+        pump * Y.imag,
+        w,
+        int(steps),
+    )
+    return np.linalg.eigvals(monodromy)
+
+
+def hopf_floquet(params: ModelParams, steps: int = 200, alpha_max: float = 500.0) -> dict[str, Any]:
+    """Smallest alpha [N] where max |Floquet multiplier| reaches 1.
+
+    A geometric grid (ratio 1.2 from 1e-3 N) finds the first sign change of
+    ``log max|mu|``, then brentq refines it to 1e-6 N. Returns a dict with
+    ``alpha_H``, ``status`` (``ok`` or ``not-found`` below ``alpha_max``),
+    ``multiplier`` (the real part of the critical multiplier: -1 for the
+    subharmonic resonance, +1 for the harmonic one) and ``runs`` (monodromy
+    evaluations).
+    """
+    runs = 0
+
+    def log_rho(alpha: float) -> float:
+        nonlocal runs
+        runs += 1
+        return float(np.log(np.abs(floquet_multipliers(params.replace(alpha=alpha), steps)).max()))
+
+    lo, hi = 0.0, 1e-3
+    while log_rho(hi) <= 0.0:
+        lo, hi = hi, hi * 1.2
+        if hi > alpha_max:
+            return dict(alpha_H=math.nan, status="not-found", multiplier=math.nan, runs=runs)
+    alpha = brentq(log_rho, lo, hi, xtol=1e-6) if lo > 0 else hi
+    mu = floquet_multipliers(params.replace(alpha=alpha), steps)
+    critical = mu[np.argmax(np.abs(mu))]
+    return dict(alpha_H=alpha, status="ok", multiplier=float(critical.real), runs=runs)
+
+
+# -- the simulated protocol -----------------------------------------------------
+def kicked_records(backend, params: ModelParams, kick: float, settle_periods: int, periods: int) -> tuple[np.ndarray, Status]:
+    """Kick the pendulum off the semi-trivial solution and record what follows.
+
+    The one place the simulate method touches a backend (swap it for a
+    batched call to run many alphas at once). The oscillator starts on its
+    steady response, with the pendulum at rest, and runs ``settle_periods``
+    (to settle any backend-specific states); then ``theta += kick``.
+
+    Returns
+    -------
+    records : float64[periods, 8]
+        Per-period records after the kick (``pendsweep.kernels.RECORD_COLUMNS``:
+        the envelope is ``theta_absmax``, the section ``theta_sec, thetadot_sec``).
+    status : Status
+    """
+    Y = semi_trivial_response(params)
+    state = backend.initial_state(params, Y.imag, params.omega_e * Y.real, 0.0, 0.0)
+    settle = backend.run_point(params, state, settle_periods, 1)
+    if settle.status is not Status.OK:
+        return np.full((periods, N_RECORD_COLUMNS), np.nan), settle.status
+    state = settle.state.copy()
+    state[2] += kick
+    run = backend.run_point(params, state, 0, periods)
+    return run.records, run.status
+
+
+def envelope_growth_rate(records: np.ndarray, omega_p: float, linear_limit: float) -> float:
+    """Growth rate [1/period] of the kicked pendulum's envelope, two-multiplier fit.
+
+    The stroboscopic pendulum state ``x_k = (theta_k, thetadot_k / omega_p)``
+    of a linear(ised) pendulum obeys ``x_{k+1} = A x_k`` exactly, so its
+    envelope is ``|c1 mu1^k + c2 mu2^k|`` - beating included. ``A`` is fitted
+    by least squares over the periods before the envelope first exceeds
+    ``linear_limit`` rad (at least 3), and the rate is ``log max|eig A|``
+    (``log`` of the largest Floquet multiplier modulus). ``inf`` when the
+    pendulum rotates.
+    """
+    if np.nansum(np.abs(records[:, REC_ROTATIONS])) > 0:
+        return math.inf
+    big = np.flatnonzero(records[:, REC_THETA_ABSMAX] > linear_limit)
+    n = max(3, int(big[0]) if big.size else records.shape[0])
+    x = np.vstack([records[:n, REC_THETA_SEC], records[:n, REC_THETADOT_SEC] / omega_p])
+    A = np.linalg.lstsq(x[:, :-1].T, x[:, 1:].T, rcond=None)[0].T
+    return float(np.log(np.abs(np.linalg.eigvals(A)).max()))
+
+
+def hopf_simulate(
+    params: ModelParams,
+    backend,
+    *,
+    kick: float = 0.01,
+    periods: int = 200,
+    settle_periods: int = 10,
+    tol: float = 0.1,
+    alpha_max: float = 500.0,
+) -> dict[str, Any]:
+    """Bisection on alpha with the kick-and-growth-rate criterion (module docstring).
+
+    Alpha is above the boundary when :func:`envelope_growth_rate` is
+    positive and the pendulum has not come to rest (final envelope above one
+    encoder pulse; Coulomb friction can stop it). The search starts at
+    1.25 x Eq. (12) (only as a first guess) and doubles until the pendulum
+    grows; alpha = 0 is stable by definition. Returns a dict with
+    ``alpha_H`` (bracket midpoint), ``bracket_lo/hi`` [N],
+    ``growth_below/above`` (growth rates at the bracket ends [1/period]),
+    ``runs`` and ``status``.
+    """
+    runs = 0
+
+    def growth(alpha: float) -> tuple[float, Status]:
+        nonlocal runs
+        runs += 1
+        records, status = kicked_records(backend, params.replace(alpha=alpha), kick, settle_periods, periods)
+        if status is not Status.OK:
+            return math.nan, status
+        rate = envelope_growth_rate(records, params.omega_p, max(LINEAR_LIMIT, 4.0 * kick))
+        at_rest = records[-1, REC_THETA_ABSMAX] < ENCODER_RESOLUTION
+        return (min(rate, 0.0) if at_rest else rate), status
+
+    lo, g_lo = 0.0, math.nan
+    hi = 1.25 * alpha_hopf_analytic(params) or 1.0
+    while True:
+        g_hi, status = growth(hi)
+        if status is not Status.OK:
+            return _simulate_row(math.nan, lo, hi, g_lo, g_hi, runs, status.value)
+        if g_hi > 0.0:
+            break
+        lo, g_lo, hi = hi, g_hi, 2.0 * hi
+        if hi > alpha_max:
+            return _simulate_row(math.nan, lo, math.nan, g_lo, math.nan, runs, "not-found")
+    while hi - lo > tol:
+        mid = 0.5 * (lo + hi)
+        g, status = growth(mid)
+        if status is not Status.OK:
+            return _simulate_row(math.nan, lo, hi, g_lo, g_hi, runs, status.value)
+        if g > 0.0:
+            hi, g_hi = mid, g
+        else:
+            lo, g_lo = mid, g
+    return _simulate_row(0.5 * (lo + hi), lo, hi, g_lo, g_hi, runs, "ok")
+
+
+def _simulate_row(alpha, lo, hi, g_lo, g_hi, runs, status) -> dict[str, Any]:
+    return dict(
+        alpha_H=alpha, bracket_lo=lo, bracket_hi=hi, growth_below=g_lo, growth_above=g_hi, runs=runs, status=status
+    )
+
+
+# -- scans ------------------------------------------------------------------------
+@dataclass(frozen=True)
+class HopfConfig:
+    """A Hopf-boundary scan over (omega_hat, M, method); stored with every result file.
+
+    Attributes
+    ----------
+    omega_hat : tuple of float
+        Frequency ratios w_e / (2 w_p) (> 0); ``fe = omega_hat w_p / pi``.
+    masses : tuple of float
+        Oscillator masses M [kg].
+    methods : tuple of str
+        Any of ``analytic``, ``floquet``, ``simulate``.
+    model : dict
+        Overrides of the default :class:`~pendsweep.params.ModelParams`.
+    backend, backend_options
+        Backend of the ``simulate`` method (any registered name).
+    kick : float
+        Pendulum perturbation [rad] of the simulate method.
+    periods, settle_periods : int
+        Envelope record after the kick, and oscillator settling before it [forcing periods].
+    tol : float
+        Bisection stops when the bracket is narrower than this [N].
+    alpha_max : float
+        Give up (status ``not-found``) above this amplitude [N].
+    floquet_steps : int
+        RK4 steps per period of the monodromy integration.
+    """
+
+    omega_hat: tuple[float, ...]
+    masses: tuple[float, ...] = (10.9,)
+    methods: tuple[str, ...] = METHODS
+    model: dict[str, float] = field(default_factory=dict)
+    backend: str = "emulated"
+    backend_options: dict[str, Any] = field(default_factory=dict)
+    kick: float = 0.01
+    periods: int = 200
+    settle_periods: int = 10
+    tol: float = 0.1
+    alpha_max: float = 500.0
+    floquet_steps: int = 200
+
+    def __post_init__(self) -> None:
+        for name in ("omega_hat", "masses", "methods"):
+            object.__setattr__(self, name, tuple(getattr(self, name)))
+            if not getattr(self, name):
+                raise ConfigError(f"a Hopf scan needs at least one value of {name}")
+        for w in self.omega_hat:
+            if not (math.isfinite(w) and w > 0):
+                raise ConfigError(f"omega_hat = {w!r} must be a finite number > 0")
+        object.__setattr__(self, "masses", tuple(check_value("M", v) for v in self.masses))
+        bad = [m for m in self.methods if m not in METHODS]
+        if bad:
+            raise ConfigError(f"unknown Hopf method(s) {', '.join(bad)}; choose from {', '.join(METHODS)}")
+        for name, lo in (("periods", 2), ("settle_periods", 0), ("floquet_steps", 8)):
+            v = getattr(self, name)
+            if int(v) != v or v < lo:
+                raise ConfigError(f"{name} = {v!r} must be an integer >= {lo}")
+        for name in ("kick", "tol", "alpha_max"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise ConfigError(f"{name} = {v!r} must be a finite number > 0")
+        backend = make_backend(self.backend, **self.backend_options)
+        for i in range(len(self.omega_hat)):
+            for j in range(len(self.masses)):
+                params = self.params_at(i, j)
+                semi_trivial_response(params)
+                if "simulate" in self.methods:
+                    backend.validate(params)
+
+    def params_at(self, point: int, mass_point: int) -> ModelParams:
+        base = ModelParams.from_mapping(self.model).replace(M=self.masses[mass_point])
+        return base.replace(fe=fe_for_omega_hat(base, self.omega_hat[point]))
+
+    def units(self) -> list[tuple[int, int, str]]:
+        """Every ``(mass_point, point, method)`` of the scan."""
+        return [
+            (j, i, method)
+            for j in range(len(self.masses))
+            for i in range(len(self.omega_hat))
+            for method in self.methods
+        ]
+
+    def to_dict(self) -> dict[str, Any]:
+        d = dataclasses.asdict(self)
+        for name in ("omega_hat", "masses", "methods"):
+            d[name] = list(d[name])
+        d["model"] = ModelParams.from_mapping(self.model).to_dict()
+        d["backend_options"] = make_backend(self.backend, **self.backend_options).options()
+        return d
+
+
+def hopf_point(config: HopfConfig, mass_point: int, point: int, method: str, backend=None) -> pd.DataFrame:
+    """One result row (as a one-row DataFrame with :data:`COLUMNS` and the keys)."""
+    params = config.params_at(point, mass_point)
+    row: dict[str, Any] = dict(
+        omega_hat=config.omega_hat[point], fe=params.fe, M=params.M, method=method,
+        alpha_H=math.nan, status="ok", multiplier=math.nan, growth_below=math.nan, growth_above=math.nan,
+        bracket_lo=math.nan, bracket_hi=math.nan, kick=math.nan, runs=1, backend="",
+    )
+    if method == "analytic":
+        row["alpha_H"] = alpha_hopf_analytic(params)
+    elif method == "floquet":
+        row.update(hopf_floquet(params, config.floquet_steps, config.alpha_max))
+    else:
+        backend = backend or make_backend(config.backend, **config.backend_options)
+        row.update(
+            hopf_simulate(
+                params, backend, kick=config.kick, periods=config.periods,
+                settle_periods=config.settle_periods, tol=config.tol, alpha_max=config.alpha_max,
+            )
+        )
+        row.update(kick=config.kick, backend=config.backend)
+    df = pd.DataFrame([row], columns=COLUMNS)
+    df.insert(0, "mass_point", np.int64(mass_point))
+    df.insert(1, "point", np.int64(point))
+    df["runs"] = df["runs"].astype(np.int64)
+    return df
+
+
+def hopf_metadata(config: HopfConfig) -> dict[str, Any]:
+    return run_metadata("hopf", config.to_dict(), backend=config.backend)
+
+
+def run_hopf(
+    config: HopfConfig,
+    output: Path | None = None,
+    *,
+    n_jobs: int = 1,
+    progress: bool = False,
+    overwrite: bool = False,
+) -> pd.DataFrame:
+    """Run (or resume) a Hopf-boundary scan; one row per (M, omega_hat, method).
+
+    Persistence and resuming are those of :func:`pendsweep.sweep.run_sweep`
+    (:class:`~pendsweep.results.ResultStore`, keyed by ``mass_point, point,
+    method``). Returns the rows sorted by mass, omega_hat and method order.
+    """
+    from tqdm.auto import tqdm
+
+    from .sweep import _stream
+
+    store = ResultStore(output, hopf_metadata(config), KEY_COLUMNS, overwrite=overwrite) if output else None
+    done_df = store.done()[0] if store is not None else pd.DataFrame()
+    if store is not None and store.complete:
+        return done_df
+    done = set() if done_df.empty else set(zip(done_df.mass_point, done_df.point, done_df.method))
+    todo = [u for u in config.units() if u not in done]
+    frames = [done_df] if not done_df.empty else []
+    backend = make_backend(config.backend, **config.backend_options)
+    tasks: list[Callable[[], Iterable[pd.DataFrame]]] = [
+        lambda u=u: [hopf_point(config, *u, backend=backend)] for u in todo
+    ]
+    bar = tqdm(total=len(config.units()), initial=len(done), unit="pt", disable=not progress, desc="hopf")
+    try:
+        for rows in _stream(tasks, n_jobs):
+            frames.append(rows)
+            if store is not None:
+                j, i, method = rows.iloc[0][KEY_COLUMNS]
+                store.add(rows, f"{j}:{i}:{method}", [])
+            bar.update(1)
+    finally:
+        bar.close()
+        if store is not None:
+            store.flush()
+    if store is not None:
+        return _ordered(store.finalize(KEY_COLUMNS), config)
+    return _ordered(pd.concat(frames, ignore_index=True), config)
+
+
+def _ordered(df: pd.DataFrame, config: HopfConfig) -> pd.DataFrame:
+    order = {m: k for k, m in enumerate(config.methods)}
+    df = df.assign(_m=df["method"].map(order)).sort_values(["mass_point", "point", "_m"], kind="stable")
+    return df.drop(columns="_m").reset_index(drop=True)
