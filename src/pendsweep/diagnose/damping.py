@@ -43,7 +43,7 @@ from scipy.optimize import least_squares
 from ..data import Record
 from ..errors import ConfigError
 from ..kernels import pendulum_trace
-from .replay import noise_std, smoothed
+from .replay import MAX_STEP, noise_std, smoothed
 from .signatures import extrema
 
 #: Names of the physical parameters (per unit inertia) and nuisance parameters.
@@ -90,6 +90,7 @@ class _Swing:
             raise ConfigError(f"{record.name}: fit-damping needs a free_decay record, got {record.kind!r}")
         self.g = g
         self.dt = record.dt
+        self.substeps = max(1, math.ceil(self.dt / MAX_STEP - 1e-9))
         theta = record.channel("theta")
         step = noise_std(theta) * math.sqrt(12.0)
         # Ignore turning points within a few encoder steps of rest.
@@ -125,7 +126,7 @@ class _Swing:
         L = q["L"]
         p = np.array([1.0, L, q["beta1"] * L * L, q["beta2"] * L * L, q["beta3"] * L * L, self.g, 1.0, 0.0, 1.0, 0.0])
         out = np.empty((n or self.n, 2))
-        pendulum_trace(np.array([q["theta_init"] - q["theta0"], q["thetadot_init"]]), p, self.dt, out)
+        pendulum_trace(np.array([q["theta_init"] - q["theta0"], q["thetadot_init"]]), p, self.dt, self.substeps, out)
         return out[:, 0] + q["theta0"]
 
     def turning_points(self, q: dict[str, float]) -> np.ndarray:

@@ -16,7 +16,12 @@ Verdict: the best candidate is named only when all three hold
    gives p < ``P_VALUE``;
 3. BIC improves on the nominal by more than ``DELTA_BIC`` (strong evidence).
 
-Otherwise the verdict is ``none``.
+Otherwise the verdict is ``none``. When the best single cause leaves a held-out
+error above ``SECOND_ROUND_FLOOR`` x floor, a greedy second round fits it
+together with each other candidate and names the best pair (``"a+b"``) when
+the pair passes the same three tests against that single cause and against
+the nominal model, and removes more than ``SECOND_ROUND_SHARE`` of the single
+cause's squared error above the floor.
 """
 
 from __future__ import annotations
@@ -38,6 +43,10 @@ FLOOR_SHARE = 0.25
 BLOCKS = 10
 P_VALUE = 0.01
 DELTA_BIC = 10.0
+#: The second round runs when the best single cause leaves more than this multiple of the floor ...
+SECOND_ROUND_FLOOR = 1.5
+#: ... and names a pair that removes more than this share of the single cause's excess over the floor.
+SECOND_ROUND_SHARE = 0.5
 #: Scales of the free-decay nuisance parameters [rad], [rad/s].
 _NUISANCE_SCALE = {"theta_init": 0.01, "thetadot_init": 0.05}
 _DIVERGED = 1e3
@@ -49,10 +58,10 @@ class Fit:
 
     Attributes
     ----------
-    cause : str or None
-        Vocabulary cause, ``None`` for the nominal model.
+    causes : tuple of str
+        Vocabulary causes fitted together; empty for the nominal model.
     values : dict
-        Every fitted value (the cause's parameter and nuisance parameters).
+        Every fitted value (the causes' parameters and nuisance parameters).
     stderr : dict
         One-sigma uncertainty of each fitted value.
     error_train, error_after : float
@@ -63,7 +72,7 @@ class Fit:
         Simulated channels over the whole record.
     """
 
-    cause: str | None
+    causes: tuple[str, ...]
     values: dict[str, float]
     stderr: dict[str, float]
     error_train: float
@@ -72,16 +81,21 @@ class Fit:
     sim: dict[str, np.ndarray] = field(repr=False, default_factory=dict)
 
     @property
-    def param(self) -> str | None:
-        return EFFECTS[self.cause].param if self.cause else None
+    def cause(self) -> str | None:
+        """The cause's name; two causes of a second round are joined by ``+``."""
+        return "+".join(self.causes) or None
+
+    @property
+    def params(self) -> list[str]:
+        return [EFFECTS[c].param for c in self.causes]
 
     @property
     def estimate(self) -> dict[str, float]:
-        return {self.param: self.values[self.param]} if self.cause else {}
+        return {p: self.values[p] for p in self.params}
 
     @property
     def uncertainty(self) -> dict[str, float]:
-        return {self.param: self.stderr[self.param]} if self.cause else {}
+        return {p: self.stderr[p] for p in self.params}
 
 
 def start_value(replay: Replay, eff: Effect) -> float:
@@ -103,20 +117,21 @@ def start_value(replay: Replay, eff: Effect) -> float:
     return float(nominal)
 
 
-def fit_model(replay: Replay, cause: str | None, nuisance: dict[str, float] | None = None) -> Fit:
-    """Fit ``cause``'s parameter (and nuisance parameters) on the training part.
+def fit_model(replay: Replay, causes: tuple[str, ...] = (), starts: dict[str, float] | None = None) -> Fit:
+    """Fit the ``causes``' parameters (and nuisance parameters) on the training part.
 
-    ``nuisance`` gives starting values of the nuisance parameters (the nominal
-    fit's), so that a candidate starts from the nominal optimum, which it nests.
+    ``starts`` gives starting values by parameter name, e.g. the nominal fit's
+    nuisance values, so that a candidate starts from the optimum it nests.
     """
+    starts = starts or {}
     names: list[str] = []
     start: list[float] = []
     scale: list[float] = []
     lo: list[float] = []
     hi: list[float] = []
-    if cause is not None:
+    for cause in causes:
         eff = effect(cause)
-        s0 = start_value(replay, eff)
+        s0 = starts.get(eff.param, start_value(replay, eff))
         # trf's scaling freezes a variable that starts on its bound: start just inside.
         s0 = max(s0, eff.lower + 0.05 * eff.scale)
         names.append(eff.param)
@@ -127,7 +142,7 @@ def fit_model(replay: Replay, cause: str | None, nuisance: dict[str, float] | No
     if replay.fits_initial_state:
         for nm in NUISANCE:
             names.append(nm)
-            start.append((nuisance or replay.initial_guess)[nm])
+            start.append(starts.get(nm, replay.initial_guess[nm]))
             scale.append(_NUISANCE_SCALE[nm])
             lo.append(-math.inf)
             hi.append(math.inf)
@@ -160,7 +175,7 @@ def fit_model(replay: Replay, cause: str | None, nuisance: dict[str, float] | No
     values = values_of(u)
     stderr = _stderr(jac, r, scale_a, names) if names else {}
     sim = replay.simulate(values)
-    return Fit(cause, values, stderr, replay.nrmse(sim, replay.train), replay.nrmse(sim, replay.held_out), bic, sim)
+    return Fit(tuple(causes), values, stderr, replay.nrmse(sim, replay.train), replay.nrmse(sim, replay.held_out), bic, sim)
 
 
 def _stderr(jac: np.ndarray, r: np.ndarray, scale: np.ndarray, names: list[str]) -> dict[str, float]:
@@ -253,25 +268,46 @@ def diagnose(replay: Replay, causes: list[str] | None = None, n_jobs: int = 1) -
         raise ConfigError(
             f"cause(s) {', '.join(bad)} do not apply to kind {replay.kind!r}; applicable: {', '.join(allowed)}"
         )
-    nominal = fit_model(replay, None)
-    start = {k: nominal.values[k] for k in NUISANCE} if replay.fits_initial_state else None
-    fits = Parallel(n_jobs=n_jobs, prefer="threads")(delayed(fit_model)(replay, c, start) for c in causes)
-    fits.sort(key=lambda f: (f.error_after, f.bic))
+    nominal = fit_model(replay)
+    nuisance = {k: nominal.values[k] for k in NUISANCE} if replay.fits_initial_state else {}
+    fits = Parallel(n_jobs=n_jobs, prefer="threads")(delayed(fit_model)(replay, (c,), nuisance) for c in causes)
     floor = replay.noise_floor()
     tests: dict[str, Any] = {"noise_floor": floor}
     verdict = "none"
-    if fits:
-        best = fits[0]
-        reduction = nominal.error_after**2 - best.error_after**2
-        p = held_out_test(replay, nominal, best)
-        dbic = nominal.bic - best.bic
-        tests.update(
-            best=best.cause,
-            reduction=reduction,
-            reduction_needed=FLOOR_SHARE * floor**2,
-            p_value=p,
-            delta_bic=dbic,
+    best = _best_if_significant(replay, nominal, fits, floor, tests)
+    if best is not None:
+        verdict = best.cause
+    # Greedy second round from the best single cause (named or not: a single
+    # effect may fail the consistency test when a second one is present).
+    first = min(fits, key=lambda f: (f.error_after, f.bic)) if fits else None
+    if first is not None and len(causes) > 1 and first.error_after > SECOND_ROUND_FLOOR * floor:
+        starts = dict(nuisance, **first.values)
+        pairs = Parallel(n_jobs=n_jobs, prefer="threads")(
+            delayed(fit_model)(replay, first.causes + (c,), starts) for c in causes if c != first.cause
         )
-        if reduction > FLOOR_SHARE * floor**2 and p < P_VALUE and dbic > DELTA_BIC:
-            verdict = best.cause
+        second: dict[str, Any] = {}
+        pair = _best_if_significant(replay, first, pairs, floor, second)
+        tests["second_round"] = second
+        # The pair must also remove most of what the single cause leaves above the floor.
+        explained = pair is not None and (
+            first.error_after**2 - pair.error_after**2 > SECOND_ROUND_SHARE * (first.error_after**2 - floor**2)
+        )
+        if explained and _best_if_significant(replay, nominal, [pair], floor, {}) is not None:
+            verdict = pair.cause
+        fits += pairs
+    fits.sort(key=lambda f: (f.error_after, f.bic))
     return Diagnosis(replay, nominal, fits, floor, verdict, tests)
+
+
+def _best_if_significant(replay: Replay, base: Fit, fits: list[Fit], floor: float, tests: dict[str, Any]) -> Fit | None:
+    """The fit with the lowest held-out error if it passes the three tests against ``base``."""
+    if not fits:
+        return None
+    best = min(fits, key=lambda f: (f.error_after, f.bic))
+    reduction = base.error_after**2 - best.error_after**2
+    p = held_out_test(replay, base, best)
+    dbic = base.bic - best.bic
+    tests.update(best=best.cause, reduction=reduction, reduction_needed=FLOOR_SHARE * floor**2, p_value=p, delta_bic=dbic)
+    if reduction > FLOOR_SHARE * floor**2 and p < P_VALUE and dbic > DELTA_BIC:
+        return best
+    return None

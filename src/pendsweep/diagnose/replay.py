@@ -42,6 +42,8 @@ CHANNELS = {"free_decay": ("theta",), "forced": ("y", "theta"), "substructured":
 #: Default short-horizon segment length for forced records [s].
 DEFAULT_HORIZON = 4.0
 TRAIN_FRACTION = 0.6
+#: Largest integration step of free-swing replays [s] (the paper's 1 ms).
+MAX_STEP = 1e-3
 #: Savitzky-Golay window for state estimates [s] (cubic).
 SMOOTH_WINDOW = 0.05
 _KERNEL_ORDER = ("m", "l", "b1", "b2", "b3", "g", "M", "C", "K", "k3")
@@ -132,6 +134,9 @@ class Replay:
             self.force_half = midpoint_values(self.force)
             self.initial_guess = {}
         self.fits_initial_state = self.kind == "free_decay"
+        # Free swings integrate with steps of at most MAX_STEP: the held sgn of the
+        # Coulomb term makes the model depend on the step.
+        self.substeps = max(1, math.ceil(self.dt / MAX_STEP - 1e-9))
 
     # -- simulation -------------------------------------------------------------
     def simulate(self, values: dict[str, float], stop: int | None = None) -> dict[str, np.ndarray]:
@@ -149,7 +154,7 @@ class Replay:
         if self.kind == "free_decay":
             out = np.empty((stop, 2))
             state = np.array([v["theta_init"] - theta0, v["thetadot_init"]])
-            pendulum_trace(state, p, self.dt, out)
+            pendulum_trace(state, p, self.dt, self.substeps, out)
             return {"theta": out[:, 0] + theta0}
         if self.kind == "substructured":
             return self._loop(v, p, theta0, stop)

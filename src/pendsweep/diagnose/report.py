@@ -29,26 +29,28 @@ def extended_params(diag: Diagnosis) -> dict[str, float]:
         values.update(diag.best.estimate)
         # The numerical M1 = M - M2 and C1 = C - C2 are code: a different
         # platform changes the complete system's totals.
-        if diag.best.param == "M2":
+        if "M2" in diag.best.estimate:
             values["M"] = diag.replay.nominal["M"] - diag.replay.nominal["M2"] + values["M2"]
-        if diag.best.param == "C2":
+        if "C2" in diag.best.estimate:
             values["C"] = diag.replay.nominal["C"] - diag.replay.nominal["C2"] + values["C2"]
     model, _ = split_values(values)
     return model_file(model)
 
 
 def ambiguous_with(diag: Diagnosis) -> list[str]:
-    """Runner-up causes that predict the held-out part about as well as the best."""
-    if not diag.candidates:
+    """Runner-up causes (of the same round) that predict the held-out part about as well as the best."""
+    best = diag.best or (diag.candidates[0] if diag.candidates else None)
+    if best is None:
         return []
-    best = diag.candidates[0]
     floor = diag.noise_floor
     # Compare the errors in excess of the noise floor.
     excess = math.sqrt(max(best.error_after**2 - floor**2, 0.0))
     return [
         c.cause
-        for c in diag.candidates[1:]
-        if math.sqrt(max(c.error_after**2 - floor**2, 0.0)) <= AMBIGUOUS_RATIO * excess + 0.1 * floor
+        for c in diag.candidates
+        if c is not best
+        and len(c.causes) == len(best.causes)
+        and math.sqrt(max(c.error_after**2 - floor**2, 0.0)) <= AMBIGUOUS_RATIO * excess + 0.1 * floor
         and c.error_after < diag.nominal.error_after
     ]
 
@@ -179,7 +181,7 @@ def write_report(diag: Diagnosis, outdir: Path, source: str) -> list[Path]:
         "",
         "## Verdict",
         "",
-        f"**cause: `{js['cause']}`**" + (f" — {EFFECTS[js['cause']].meaning}" if js["cause"] != "none" else ""),
+        f"**cause: `{js['cause']}`**" + (f" — {', '.join(EFFECTS[c].meaning for c in diag.best.causes)}" if diag.best else ""),
         "",
         "| quantity | value |",
         "|---|---|",
@@ -188,25 +190,27 @@ def write_report(diag: Diagnosis, outdir: Path, source: str) -> list[Path]:
         f"| gain = 1 - after/before | {_fmt(js['gain'])} |",
         f"| noise floor (sensor-noise NRMSE from the data) | {_fmt(diag.noise_floor)} |",
     ]
-    for p, v in js["estimate"].items():
-        lines.append(f"| estimate {p} [{EFFECTS[js['cause']].unit}] | {_fmt(v)} ± {_fmt(js['uncertainty'][p])} |")
-    t = diag.tests
-    if "best" in t:
-        lines += [
-            "",
-            f"Tests on the best candidate `{t['best']}`: held-out MSE reduction {_fmt(t['reduction'])} "
-            f"(needed > {FLOOR_SHARE:g} x floor^2 = {_fmt(t['reduction_needed'])}); "
-            f"block t test p = {_fmt(t['p_value'])} (needed < {P_VALUE:g}); "
-            f"BIC improvement {_fmt(t['delta_bic'])} (needed > {DELTA_BIC:g}).",
-        ]
+    for c in diag.best.causes if diag.best else ():
+        p = EFFECTS[c].param
+        lines.append(f"| estimate {p} [{EFFECTS[c].unit}] | {_fmt(js['estimate'][p])} ± {_fmt(js['uncertainty'][p])} |")
+    for t, against in ((diag.tests, "the nominal"), (diag.tests.get("second_round", {}), "the first cause alone")):
+        if "best" in t:
+            lines += [
+                "",
+                f"Tests on the best candidate `{t['best']}` against {against}: held-out MSE reduction {_fmt(t['reduction'])} "
+                f"(needed > {FLOOR_SHARE:g} x floor^2 = {_fmt(t['reduction_needed'])}); "
+                f"block t test p = {_fmt(t['p_value'])} (needed < {P_VALUE:g}); "
+                f"BIC improvement {_fmt(t['delta_bic'])} (needed > {DELTA_BIC:g}).",
+            ]
     amb = ambiguous_with(diag)
     if amb:
         lines += ["", f"Not distinguishable on this record from: {', '.join(f'`{a}`' for a in amb)} "
                   "(held-out errors within 10% above the noise floor). A record with more amplitude range or a second forcing tone separates them."]
     lines += ["", "## Candidates (sorted by held-out NRMSE)", "", "| cause | estimate | ± | held-out NRMSE | BIC (training) |", "|---|---|---|---|---|"]
     for c in diag.candidates:
-        (p, v), = c.estimate.items()
-        lines.append(f"| `{c.cause}` | {p} = {_fmt(v)} | {_fmt(c.stderr[p])} | {_fmt(c.error_after)} | {c.bic:.1f} |")
+        est = ", ".join(f"{p} = {_fmt(v)}" for p, v in c.estimate.items())
+        err = ", ".join(_fmt(c.stderr[p]) for p in c.estimate)
+        lines.append(f"| `{c.cause}` | {est} | {err} | {_fmt(c.error_after)} | {c.bic:.1f} |")
     lines.append(f"| (nominal) | | | {_fmt(diag.nominal.error_after)} | {diag.nominal.bic:.1f} |")
     lines += ["", "## Signature diagnostics (nominal model)", "", "| signature | value |", "|---|---|"]
     lines += [f"| {k} | {_fmt(v)} |" for k, v in sig.items()]

@@ -113,7 +113,7 @@ def synthesize(
     t = np.arange(n) * dt
     if kind == "free_decay":
         fine = np.empty(((n - 1) * oversample + 1, 2))
-        pendulum_trace(np.array([theta_init, thetadot_init]), p, h, fine)
+        pendulum_trace(np.array([theta_init, thetadot_init]), p, h, 1, fine)
         theta = fine[::oversample, 0]
         data = pd.DataFrame({"t": t, "theta": _measure(theta + chain["theta0"], sensors.theta_step, 0.0, rng)})
         return Record(data, kind, nominal, name="synth")

@@ -23,7 +23,7 @@ def _pendulum_rhs(th, thd, m, l, b1, b2, b3, g, sgn):
 
 
 @nb.njit(cache=True, nogil=True)
-def pendulum_trace(state, p, dt, out):
+def pendulum_trace(state, p, dt, substeps, out):
     """Free swing of the pendulum about a fixed pivot.
 
     Parameters
@@ -33,8 +33,10 @@ def pendulum_trace(state, p, dt, out):
     p : float64[10]
         Parameter vector (``ModelParams.kernel_array``); only m, l, b1-b3, g are used.
     dt : float
-        Sample step [s], one RK4 step per sample; sgn(thetadot) is held over
-        the step, as in the paper.
+        Sample step [s].
+    substeps : int
+        RK4 steps per sample; sgn(thetadot) is held over each step, as in the
+        paper, which makes the Coulomb term depend on the step size.
     out : float64[n, 2]
         Filled with ``theta, thetadot`` at every sample, row 0 being ``state``.
 
@@ -45,18 +47,19 @@ def pendulum_trace(state, p, dt, out):
     """
     m, l, g = p[P_M_PEND], p[P_L], p[P_G]
     b1, b2, b3 = p[P_B1], p[P_B2], p[P_B3]
-    h = dt
+    h = dt / substeps
     h2 = 0.5 * h
     th, thd = state[0], state[1]
     out[0, 0], out[0, 1] = th, thd
     for i in range(1, out.shape[0]):
-        s = signum(thd)
-        k1t, k1d = _pendulum_rhs(th, thd, m, l, b1, b2, b3, g, s)
-        k2t, k2d = _pendulum_rhs(th + h2 * k1t, thd + h2 * k1d, m, l, b1, b2, b3, g, s)
-        k3t, k3d = _pendulum_rhs(th + h2 * k2t, thd + h2 * k2d, m, l, b1, b2, b3, g, s)
-        k4t, k4d = _pendulum_rhs(th + h * k3t, thd + h * k3d, m, l, b1, b2, b3, g, s)
-        th += h / 6.0 * (k1t + 2.0 * k2t + 2.0 * k3t + k4t)
-        thd += h / 6.0 * (k1d + 2.0 * k2d + 2.0 * k3d + k4d)
+        for _ in range(substeps):
+            s = signum(thd)
+            k1t, k1d = _pendulum_rhs(th, thd, m, l, b1, b2, b3, g, s)
+            k2t, k2d = _pendulum_rhs(th + h2 * k1t, thd + h2 * k1d, m, l, b1, b2, b3, g, s)
+            k3t, k3d = _pendulum_rhs(th + h2 * k2t, thd + h2 * k2d, m, l, b1, b2, b3, g, s)
+            k4t, k4d = _pendulum_rhs(th + h * k3t, thd + h * k3d, m, l, b1, b2, b3, g, s)
+            th += h / 6.0 * (k1t + 2.0 * k2t + 2.0 * k3t + k4t)
+            thd += h / 6.0 * (k1d + 2.0 * k2d + 2.0 * k3d + k4d)
         if not (math.isfinite(th) and math.isfinite(thd)):
             out[i:, :] = np.nan
             return STATUS_DIVERGED
