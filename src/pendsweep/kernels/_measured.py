@@ -16,10 +16,9 @@ from ._substructured import hermite, pendulum_acc
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
-def _pendulum_rhs(th, thd, m, l, b1, b2, b3, g, sgn):
-    """Eq. (2) with a fixed pivot (ydd = 0): thetadot and thetaddot."""
-    fd = b1 * sgn + b2 * thd + b3 * thd * thd * sgn
-    return thd, -(g / l) * math.sin(th) - fd / (m * l * l)
+def _pendulum_params(p):
+    """``m, l, b1, b2, b3, g`` from the kernel parameter vector."""
+    return p[P_M_PEND], p[P_L], p[P_B1], p[P_B2], p[P_B3], p[P_G]
 
 
 @nb.njit(cache=True, nogil=True)
@@ -45,21 +44,21 @@ def pendulum_trace(state, p, dt, substeps, out):
     int
         ``STATUS_OK`` or ``STATUS_DIVERGED``.
     """
-    m, l, g = p[P_M_PEND], p[P_L], p[P_G]
-    b1, b2, b3 = p[P_B1], p[P_B2], p[P_B3]
+    m, l, b1, b2, b3, g = _pendulum_params(p)
     h = dt / substeps
     h2 = 0.5 * h
     th, thd = state[0], state[1]
     out[0, 0], out[0, 1] = th, thd
     for i in range(1, out.shape[0]):
         for _ in range(substeps):
+            # Eq. (2) with a fixed pivot: the platform acceleration is zero.
             s = signum(thd)
-            k1t, k1d = _pendulum_rhs(th, thd, m, l, b1, b2, b3, g, s)
-            k2t, k2d = _pendulum_rhs(th + h2 * k1t, thd + h2 * k1d, m, l, b1, b2, b3, g, s)
-            k3t, k3d = _pendulum_rhs(th + h2 * k2t, thd + h2 * k2d, m, l, b1, b2, b3, g, s)
-            k4t, k4d = _pendulum_rhs(th + h * k3t, thd + h * k3d, m, l, b1, b2, b3, g, s)
-            th += h / 6.0 * (k1t + 2.0 * k2t + 2.0 * k3t + k4t)
-            thd += h / 6.0 * (k1d + 2.0 * k2d + 2.0 * k3d + k4d)
+            k1 = pendulum_acc(th, thd, 0.0, s, m, l, b1, b2, b3, g)
+            k2 = pendulum_acc(th + h2 * thd, thd + h2 * k1, 0.0, s, m, l, b1, b2, b3, g)
+            k3 = pendulum_acc(th + h2 * (thd + h2 * k1), thd + h2 * k2, 0.0, s, m, l, b1, b2, b3, g)
+            k4 = pendulum_acc(th + h * (thd + h2 * k2), thd + h * k3, 0.0, s, m, l, b1, b2, b3, g)
+            th += h / 6.0 * (thd + 2.0 * (thd + h2 * k1) + 2.0 * (thd + h2 * k2) + (thd + h * k3))
+            thd += h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
         if not (math.isfinite(th) and math.isfinite(thd)):
             out[i:, :] = np.nan
             return STATUS_DIVERGED
@@ -161,8 +160,7 @@ def substructured_replay(state, p, M1, C1, M2, C2, force, force_half, gain, gain
     int
         ``STATUS_OK`` or ``STATUS_DIVERGED``.
     """
-    m, l, g = p[P_M_PEND], p[P_L], p[P_G]
-    b1, b2, b3 = p[P_B1], p[P_B2], p[P_B3]
+    m, l, b1, b2, b3, g = _pendulum_params(p)
     K, k3 = p[P_K], p[P_K3]
     ms = M2 + m
     h = dt / substeps
