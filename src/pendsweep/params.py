@@ -37,6 +37,16 @@ __all__ = [
     "FIG9_CO",
     "FIG11A",
     "FIG11B",
+    "LoopParams",
+    "FIG5_LOOP",
+    "FIG7_LOOP",
+    "TABLE_II_P",
+    "TABLE_II_LOOPS",
+    "TABLE_II_MODELS",
+    "TABLE_II_FREQ_THEORY_PAPER",
+    "TABLE_II_FREQ_EXPERIMENT_PAPER",
+    "FIG6_OMEGA_N",
+    "FIG6_ZETA",
     "ParameterError",
     "check_value",
 ]
@@ -227,3 +237,111 @@ FIG9_CO = TABLE_IV.replace(alpha=12.0, fe=2.2)
 FIG11A = TABLE_IV.replace(alpha=0.0, fe=2.5)
 #: Fig. 11(b): M swept at alpha = 17 N, fe = 2.5 Hz.
 FIG11B = TABLE_IV.replace(alpha=17.0, fe=2.5)
+
+
+# -- the linear substructured loop of section 2.4 ------------------------------
+
+
+@dataclass(frozen=True)
+class LoopParams:
+    """The linear substructured loop of Eqs. (6)-(9), pendulum at rest.
+
+    ``M1 ÿ* + C1 ẏ* + K y* + m_s ẍ + C2 ẋ = F_e`` with ``x`` the delayed
+    ``y*``; ``m_s = M2 + m`` is everything the actuator carries. These are
+    not :class:`ModelParams` because the stability analysis needs only these
+    five numbers (and the paper's Fig. 5 example is not a pendulum rig).
+
+    Attributes
+    ----------
+    M1 : float
+        Numerical-model mass [kg], > 0.
+    C1 : float
+        Numerical-model damping [kg/s], >= 0.
+    K : float
+        Numerical-model stiffness [N/m], > 0.
+    ms : float
+        Mass carried by the actuator, ``M2 + m`` [kg], > 0.
+    C2 : float
+        Damping of the physical platform [kg/s], >= 0.
+    """
+
+    M1: float
+    C1: float
+    K: float
+    ms: float
+    C2: float
+
+    _SPECS = {
+        "M1": ("kg", False, "numerical-model mass"),
+        "C1": ("kg/s", True, "numerical-model damping"),
+        "K": ("N/m", False, "numerical-model stiffness"),
+        "ms": ("kg", False, "mass carried by the actuator, m_s = M2 + m"),
+        "C2": ("kg/s", True, "platform damping"),
+    }
+
+    def __post_init__(self) -> None:
+        for name, (unit, zero_ok, doc) in self._SPECS.items():
+            value = getattr(self, name)
+            try:
+                v = float(value)
+            except (TypeError, ValueError):
+                raise ParameterError(f"{name} = {value!r} is not a number ({doc})") from None
+            ok = math.isfinite(v) and (v >= 0.0 if zero_ok else v > 0.0)
+            if not ok:
+                bound = "[0, inf)" if zero_ok else "(0, inf)"
+                raise ParameterError(
+                    f"{name} = {v!r} {unit} is outside the accepted range {bound} ({doc})"
+                )
+            object.__setattr__(self, name, v)
+
+    @property
+    def mass_ratio(self) -> float:
+        """p = m_s / M1, the abscissa of Fig. 6 [-]."""
+        return self.ms / self.M1
+
+    @classmethod
+    def from_model(cls, params: ModelParams) -> "LoopParams":
+        """The loop of a rig: ``M1 = M - M2``, ``C1 = C - C2``, ``m_s = M2 + m``."""
+        return cls(M1=params.M1, C1=params.C1, K=params.K, ms=params.M2 + params.m, C2=params.C2)
+
+    @classmethod
+    def from_natural(
+        cls, omega_n: float, zeta: float, p: float, c2_over_c1: float, M1: float = 1.0
+    ) -> "LoopParams":
+        """Loop from the numerical model's ``omega_n`` [rad/s] and ``zeta`` [-] (Fig. 6)."""
+        C1 = 2.0 * zeta * omega_n * M1
+        return cls(M1=M1, C1=C1, K=omega_n**2 * M1, ms=p * M1, C2=c2_over_c1 * C1)
+
+
+#: Fig. 5 example (caption): M1 = 20 kg, C1 = 20 kg/s, K = 2000 N/m, m_s = 10 kg, C2 = 20 kg/s.
+FIG5_LOOP = LoopParams(M1=20.0, C1=20.0, K=2000.0, ms=10.0, C2=20.0)
+#: Fig. 7 numerical model M1 = 1 kg, C1 = 5 kg/s, K = 12000 N/m on the bare platform
+#: (m_s = M2 = 0.9 kg, C2 = 10 kg/s, Table IV); the caption's tau_max = 0.009 s.
+FIG7_LOOP = LoopParams(M1=1.0, C1=5.0, K=12000.0, ms=0.9, C2=10.0)
+#: Table II mass ratios p = m_s/M1: M2 = 0.9 kg alone, then M2 + m with m = 0.27 kg
+#: plus 0.65 kg steps ("adding mass to the pendulum in increments of 650 g").
+TABLE_II_P = (0.2250, 0.2925, 0.4550, 0.6175)
+#: Table II numerical model (Fig. 6 caption): M1 = 4 kg, C1 = 10 kg/s, K = 3000 N/m, C2 = C1.
+TABLE_II_LOOPS = tuple(LoopParams(M1=4.0, C1=10.0, K=3000.0, ms=p * 4.0, C2=10.0) for p in TABLE_II_P)
+#: Table II as rigs for the substructured backend (alpha = 0). p = 0.225 has m_s = 0.9 kg,
+#: which needs m > 0 here: it is split as M2 = 0.63 kg, m = 0.27 kg (only m_s enters the loop
+#: while the pendulum is at rest). The others keep M2 = 0.9 kg and load the pendulum.
+TABLE_II_MODELS = tuple(
+    TABLE_IV.replace(
+        m=0.27 if i == 0 else p * 4.0 - 0.9,
+        M2=p * 4.0 - 0.27 if i == 0 else 0.9,
+        C2=10.0,
+        M1=4.0,
+        C1=10.0,
+        K=3000.0,
+        alpha=0.0,
+    )
+    for i, p in enumerate(TABLE_II_P)
+)
+#: Table II instability frequencies [rad/s] as printed: theoretical row.
+TABLE_II_FREQ_THEORY_PAPER = (31.0, 32.0, 37.0, 44.0)
+#: Table II instability frequencies [rad/s] as printed: experimental row.
+TABLE_II_FREQ_EXPERIMENT_PAPER = (32.0, 34.0, 40.0, 45.0)
+#: Fig. 6 numerical model (text of section 2.4): omega_n = 10 rad/s, zeta = 0.05.
+FIG6_OMEGA_N = 10.0
+FIG6_ZETA = 0.05

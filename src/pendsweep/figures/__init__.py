@@ -41,3 +41,4 @@ def make_figures(names: list[str] | None, outdir: Path, quick: bool = False) -> 
 from . import core  # noqa: E402,F401  (registers figures)
 from . import hopf  # noqa: E402,F401  (Fig. 10 and the coexistence figure)
 from . import hybrid  # noqa: E402,F401  (registers the hybrid-test figures)
+from . import stability  # noqa: E402,F401  (registers the stability figures)
