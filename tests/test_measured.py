@@ -1,7 +1,7 @@
 """Measured-data workflow: format v1, hidden-effect detection, fit-damping, CLI.
 
 The detection tests hide one vocabulary effect in a synthetic record (Table III
-encoder quantisation, LVDT and load-cell noise) at a magnitude drawn by a
+encoder quantisation, LVDT and load-cell noise as in the substructured backend) at a magnitude drawn by a
 seeded generator from the detectable range documented in
 docs/measured-data.md, and require the diagnosis to name it, estimate it
 within 10 % (2 mrad for an angle offset) and gain at least 0.5.
@@ -58,7 +58,8 @@ FORCED_RANGES = {
 }
 SUB_RANGES = dict(
     FORCED_RANGES,
-    angle_offset=("abs", 0.05, 0.08),  # theta is one of four compared channels here
+    angle_offset=("abs", 0.07, 0.10),  # theta is one of four compared channels here
+    forcing_gain=("x", 1.08, 1.15),
     actuator_delay=("abs", 0.006, 0.012),
     platform_mass=("x", 1.3, 1.6),
     platform_damping=("x", 1.3, 1.6),
@@ -215,15 +216,15 @@ def test_substructured_hidden_effect_found(cause):
     check_found(rec, cause, truth)
 
 
-@pytest.mark.parametrize("kind, min_gain", [("forced", 0.5), ("substructured", 0.02)])
-def test_pendulum_damping_is_named_as_damping_family(kind, min_gain):
+@pytest.mark.parametrize("kind, factor, min_gain", [("forced", 4, 0.5), ("substructured", 8, 0.02)])
+def test_pendulum_damping_is_named_as_damping_family(kind, factor, min_gain):
     """At a near-constant swing amplitude only the dissipated energy per cycle is seen:
     a hidden viscous term is named as one of the three damping laws, and the report flags the tie.
     On substructured records the gain is small: y, y_cmd and Fs, which the pendulum damping
     hardly moves, dominate the error (documented limitation)."""
     from pendsweep.diagnose.report import ambiguous_with
 
-    rec = synthesize(kind, FIG9_PO, {"viscous_damping": 4 * N.b2}, duration=16, rate=250, seed=2, theta_init=0.3, transient=20, tone2=TONE2)
+    rec = synthesize(kind, FIG9_PO, {"viscous_damping": factor * N.b2}, duration=16, rate=250, seed=2, theta_init=0.3, transient=20, tone2=TONE2)
     d = diagnose(Replay(rec))
     family = {"coulomb_friction", "viscous_damping", "quadratic_drag"}
     assert d.cause in family and d.to_json()["gain"] >= min_gain

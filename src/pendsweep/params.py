@@ -23,11 +23,7 @@ import numpy as np
 from .errors import ParameterError
 
 __all__ = [
-    "ADC_STEP",
-    "ELECTRICAL_NOISE",
     "ENCODER_RESOLUTION",
-    "LOAD_CELL_SENSITIVITY",
-    "LVDT_SENSITIVITY",
     "ModelParams",
     "ParamSpec",
     "PARAM_SPECS",
@@ -53,14 +49,6 @@ __all__ = [
 
 #: Encoder resolution [rad/pulse], Table III. "At rest" means |theta| below this.
 ENCODER_RESOLUTION = 0.0013
-#: LVDT sensitivity [V/m] (32.31 mV/mm) and load-cell sensitivity [V/N], Table III.
-LVDT_SENSITIVITY = 32.31
-LOAD_CELL_SENSITIVITY = 0.0402
-#: Assumed data acquisition (not in the paper): 16-bit ADC over +-10 V and
-#: 1 mV rms electrical noise on the analogue channels. With Table III this
-#: gives y: 9.4 um steps, 31 um rms; force: 7.6 mN steps, 25 mN rms.
-ADC_STEP = 20.0 / 2**16
-ELECTRICAL_NOISE = 1e-3
 
 
 @dataclass(frozen=True)

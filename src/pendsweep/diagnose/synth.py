@@ -2,9 +2,10 @@
 
 The truth is the nominal model with any vocabulary effects applied. It is
 integrated ``oversample`` times finer than the record's sampling, with the
-exact sinusoidal force, and then measured: the encoder quantises theta in
-steps of :data:`ENCODER_RESOLUTION` (Table III); y and the recorded Fe get
-electrical noise and ADC quantisation through the Table III sensitivities.
+exact sinusoidal force, and then measured with the sensors of the
+substructured backend (one set of assumptions for the project): the encoder
+quantises theta in steps of :data:`ENCODER_RESOLUTION` (Table III), the LVDT
+has 10 um steps and 20 um rms noise, the load cell 0.1 N rms noise.
 The record's metadata carries the *nominal* model, so the effect is hidden.
 """
 
@@ -19,14 +20,8 @@ import pandas as pd
 from ..data import Record
 from ..errors import ConfigError
 from ..kernels import driven_trace, pendulum_trace, substructured_replay
-from ..params import (
-    ADC_STEP,
-    ELECTRICAL_NOISE,
-    ENCODER_RESOLUTION,
-    LOAD_CELL_SENSITIVITY,
-    LVDT_SENSITIVITY,
-    ModelParams,
-)
+from ..backends.substructured import SubstructuredBackend as _Rig
+from ..params import ModelParams
 from .effects import EFFECTS, nominal_values, split_values
 
 
@@ -34,11 +29,11 @@ from .effects import EFFECTS, nominal_values, split_values
 class Sensors:
     """Quantisation steps and rms noise of the measured channels (SI units)."""
 
-    theta_step: float = ENCODER_RESOLUTION
-    y_step: float = ADC_STEP / LVDT_SENSITIVITY
-    y_noise: float = ELECTRICAL_NOISE / LVDT_SENSITIVITY
-    force_step: float = ADC_STEP / LOAD_CELL_SENSITIVITY
-    force_noise: float = ELECTRICAL_NOISE / LOAD_CELL_SENSITIVITY
+    theta_step: float = _Rig.encoder_resolution
+    y_step: float = _Rig.lvdt_resolution
+    y_noise: float = _Rig.lvdt_noise
+    force_step: float = 0.0
+    force_noise: float = _Rig.force_noise
 
 
 def _measure(x: np.ndarray, step: float, noise: float, rng: np.random.Generator) -> np.ndarray:
