@@ -20,7 +20,7 @@ from click.testing import CliRunner  # noqa: E402
 from scipy.optimize import brentq  # noqa: E402
 
 from pendsweep.cli import main  # noqa: E402
-from pendsweep.data import read_free_swing, read_record, write_record  # noqa: E402
+from pendsweep.data import find_free_swing_data, read_free_swing, read_record, write_record  # noqa: E402
 from pendsweep.diagnose import EFFECTS, Replay, diagnose, synthesize  # noqa: E402
 from pendsweep.diagnose.damping import fit_damping  # noqa: E402
 from pendsweep.diagnose.effects import nominal_values  # noqa: E402
@@ -29,14 +29,8 @@ from pendsweep.diagnose.signatures import cross_correlation, decrement_fit, enve
 from pendsweep.kernels import driven_trace, emulated_trace, pendulum_trace  # noqa: E402
 from pendsweep.params import FIG9_PO, TABLE_IV  # noqa: E402
 
-from pathlib import Path  # noqa: E402
-
-_ROOT = Path(__file__).resolve().parents[1]
-REAL = next(
-    (str(p / "data/measured/free-swing-rotary-pendulum") for p in (_ROOT / "shared", _ROOT.parent / "shared", Path("/work/shared"))
-     if (p / "data/measured/free-swing-rotary-pendulum").is_dir()),
-    None,
-)
+_real = find_free_swing_data()
+REAL = None if _real is None else str(_real)
 needs_real = pytest.mark.skipif(REAL is None, reason="shared/data/measured/free-swing-rotary-pendulum not present")
 N = TABLE_IV
 #: Detectable ranges of hidden effects (truth value = nominal x factor, or absolute for theta0, k3).

@@ -236,6 +236,17 @@ def write_record(record: Record, path: str | Path) -> list[Path]:
     return [path, sidecar]
 
 
+FREE_SWING_DIR = Path("shared/data/measured/free-swing-rotary-pendulum")
+
+
+def find_free_swing_data() -> Path | None:
+    """The shared real free-swing records: ``shared/...`` in an ancestor of this package, or None."""
+    for parent in Path(__file__).resolve().parents:
+        if (parent / FREE_SWING_DIR).is_dir():
+            return parent / FREE_SWING_DIR
+    return None
+
+
 def read_free_swing(path: str | Path) -> Record:
     """Read a raw free-swing file (degrees, one sample a line, 3-value header).
 
