@@ -31,7 +31,7 @@ def _pairs(items: tuple[str, ...], what: str) -> dict[str, float]:
 @click.option("--horizon", type=FINITE, default=None, help="Short-horizon segment length for forced and substructured records [s] (default 4).")
 @click.option("--train-fraction", type=FINITE, default=0.6, show_default=True, help="Leading fraction of the record used for fitting [-].")
 @click.option("--cause", "causes", multiple=True, help="Restrict the candidates to these causes (repeatable).")
-@click.option("--jobs", type=int, default=1, show_default=True, help="Candidates fitted in parallel.")
+@click.option("--jobs", type=click.IntRange(1, 256), default=1, show_default=True, help="Candidates fitted in parallel (threads).")
 @click.option("--model", "model_file", type=click.Path(dir_okay=False, path_type=Path), help="JSON of ModelParams fields replacing the record's nominal model (e.g. from fit-damping --params-out).")
 def diagnose(data, json_out, report_dir, horizon, train_fraction, causes, jobs, model_file):
     """Compare a measured record with its nominal model and name the missing effect.
