@@ -59,4 +59,5 @@ def run_benchmarks(names: list[str] | None, output: Path, quick: bool = False) -
 from . import core  # noqa: E402,F401  (registers benchmarks)
 from . import hopf  # noqa: E402,F401  (Hopf-boundary scans)
 from . import substructured  # noqa: E402,F401  (registers benchmarks)
+from . import measured  # noqa: E402,F401  (registers benchmarks)
 from . import throughput  # noqa: E402,F401  (batched kernel against its peers)

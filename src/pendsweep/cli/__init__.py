@@ -10,5 +10,6 @@ from . import _sweep  # noqa: F401,E402  (registers the sweep commands)
 from . import _hopf  # noqa: F401,E402  (registers the hopf command)
 from . import _substructured  # noqa: F401,E402  (registers trace and sync)
 from . import _stability  # noqa: F401,E402  (registers margin)
+from . import _data  # noqa: F401,E402  (registers diagnose, fit-damping, synth)
 
 __all__ = ["main"]

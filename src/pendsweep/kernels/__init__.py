@@ -12,6 +12,7 @@ from ._layout import (
     STATUS_OK,
     STATUS_UNSTABLE,
 )
+from ._measured import driven_trace, pendulum_trace, substructured_replay
 from ._records import wrap_angle
 
 __all__ = [
@@ -24,6 +25,9 @@ __all__ = [
     "emulated_rhs",
     "emulated_step",
     "emulated_trace",
+    "driven_trace",
+    "pendulum_trace",
+    "substructured_replay",
     "forcing_table",
     "wrap_angle",
 ]

@@ -1,0 +1,142 @@
+"""Measured-data commands: ``diagnose``, ``fit-damping`` and ``synth``."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import click
+
+from ..errors import ConfigError
+from ._app import FINITE, main
+
+
+def _pairs(items: tuple[str, ...], what: str) -> dict[str, float]:
+    out = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        if not sep:
+            raise ConfigError(f"{what} {item!r} must look like NAME=VALUE")
+        try:
+            out[name.strip()] = float(value)
+        except ValueError:
+            raise ConfigError(f"{what} {item!r}: {value!r} is not a number") from None
+    return out
+
+
+@main.command()
+@click.argument("data", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--json", "json_out", type=click.Path(dir_okay=False, path_type=Path), help="Write the verdict JSON here.")
+@click.option("--report", "report_dir", type=click.Path(file_okay=False, path_type=Path), help="Write report.md, figures and extended.json into this folder.")
+@click.option("--horizon", type=FINITE, default=None, help="Short-horizon segment length for forced and substructured records [s] (default 4).")
+@click.option("--train-fraction", type=FINITE, default=0.6, show_default=True, help="Leading fraction of the record used for fitting [-].")
+@click.option("--cause", "causes", multiple=True, help="Restrict the candidates to these causes (repeatable).")
+@click.option("--jobs", type=click.IntRange(1, 256), default=1, show_default=True, help="Candidates fitted in parallel (threads).")
+@click.option("--model", "model_file", type=click.Path(dir_okay=False, path_type=Path), help="JSON of ModelParams fields replacing the record's nominal model (e.g. from fit-damping --params-out).")
+def diagnose(data, json_out, report_dir, horizon, train_fraction, causes, jobs, model_file):
+    """Compare a measured record with its nominal model and name the missing effect.
+
+    DATA is a format-v1 record (.csv with a .json sidecar, or .parquet) or a
+    raw free-swing .txt file. Prints the verdict JSON.
+    """
+    from ..data import read_record
+    from ..diagnose import Replay, diagnose as run
+    from ..diagnose.report import write_report
+
+    record = read_record(data)
+    if model_file is not None:
+        from ._sweep import load_model_file
+
+        record.params = record.params.replace(**load_model_file(model_file))
+    diag = run(Replay(record, horizon, train_fraction), list(causes) or None, n_jobs=jobs)
+    text = json.dumps(diag.to_json(), indent=1)
+    if json_out:
+        json_out.parent.mkdir(parents=True, exist_ok=True)
+        json_out.write_text(text + "\n")
+    if report_dir:
+        write_report(diag, report_dir, str(data))
+    click.echo(text)
+
+
+@main.command()
+@click.argument("out", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--kind", type=click.Choice(["free_decay", "forced", "substructured"]), default="free_decay", show_default=True, help="Record kind.")
+@click.option("--effect", "effects", multiple=True, help="Hidden effect CAUSE=VALUE, VALUE in the parameter's unit (e.g. viscous_damping=2e-4 [kg m^2/s]); repeatable.")
+@click.option("--param", "params", multiple=True, help="Nominal model override NAME=VALUE in SI units (default Table IV; Fig. 9(a) forcing for forced and substructured records); repeatable.")
+@click.option("--duration", type=FINITE, default=20.0, show_default=True, help="Record length [s].")
+@click.option("--rate", type=FINITE, default=500.0, show_default=True, help="Sample rate [Hz].")
+@click.option("--seed", type=int, default=0, show_default=True, help="Seed of the sensor noise.")
+@click.option("--theta-init", type=FINITE, default=1.0, show_default=True, help="Initial pendulum angle [rad].")
+@click.option("--thetadot-init", type=FINITE, default=0.0, show_default=True, help="Initial pendulum velocity [rad/s].")
+@click.option("--transient", type=FINITE, default=30.0, show_default=True, help="Forced and substructured records: time simulated before recording [s].")
+@click.option("--tone2", type=(FINITE, FINITE), default=None, help="Forced and substructured records: a second force tone AMPLITUDE [N] FREQUENCY [Hz].")
+def synth(out, kind, effects, params, duration, rate, seed, theta_init, thetadot_init, transient, tone2):
+    """Write a seeded measured-like record (format v1) with hidden effects.
+
+    OUT ends in .csv (a .json sidecar is written next to it) or .parquet.
+    """
+    from ..data import write_record
+    from ..diagnose import synthesize
+    from ..params import FIG9_PO, TABLE_IV
+
+    base = TABLE_IV if kind == "free_decay" else FIG9_PO
+    nominal = base.replace(**_pairs(params, "--param"))
+    record = synthesize(
+        kind, nominal, _pairs(effects, "--effect"), duration, rate, seed, theta_init, thetadot_init, transient, tone2=tone2
+    )
+    for f in write_record(record, out):
+        click.echo(f"wrote {f}")
+
+
+@main.command("fit-damping")
+@click.argument("data", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--json", "json_out", type=click.Path(dir_okay=False, path_type=Path), help="Write the results JSON here.")
+@click.option("--params-out", type=click.Path(dir_okay=False, path_type=Path), help="Write the fitted model as a ModelParams JSON (l = L, b_i = beta_i m L^2).")
+@click.option("--mass", type=FINITE, default=None, help="Pendulum mass m [kg] used to turn per-unit-inertia damping into b1-b3 for --params-out (default: the record's nominal m).")
+@click.option("--skip", type=click.IntRange(0, 10), default=1, show_default=True, help="Turning points skipped before the fit starts [-].")
+@click.option("--plot", type=click.Path(dir_okay=False, path_type=Path), help="Write a PNG of measured and simulated envelopes.")
+def fit_damping(data, json_out, params_out, mass, skip, plot):
+    """The paper's appendix procedure on free swings: fit on the first DATA, predict the others.
+
+    Prints beta1 [1/s^2], beta2 [1/s], beta3 [-] (damping per unit inertia),
+    the equivalent length L [m], and the maximum relative envelope error of
+    the fit and of each prediction (the paper reached <= 2 %).
+    """
+    from ..data import read_record
+    from ..diagnose.damping import fit_damping as run, predict
+
+    records = [read_record(p) for p in data]
+    fit = run(records[0], skip)
+    preds = {str(p): predict(fit, r, skip) for p, r in zip(data[1:], records[1:])}
+    out = {
+        "fitted_on": str(data[0]),
+        "physics": fit.physics,
+        "stderr": fit.stderr,
+        "offset_rad": fit.nuisance["theta0"],
+        "stages": fit.stages,
+        "envelope_error": fit.envelope_error,
+        "predictions": {p: {"envelope_error": v["envelope_error"], "offset_rad": v["nuisance"]["theta0"]} for p, v in preds.items()},
+    }
+    click.echo(f"fitted on {data[0]} ({fit.iterations} sensitivity iterations)")
+    units = {"beta1": "1/s^2", "beta2": "1/s", "beta3": "-", "L": "m"}
+    for stage, vals in fit.stages.items():
+        click.echo(f"  {stage:32s} " + "  ".join(f"{k}={v:.4g}" for k, v in vals.items()))
+    click.echo("  final (sensitivity updating)    " + "  ".join(
+        f"{k}={v:.4g}±{fit.stderr[k]:.2g} {units[k]}" for k, v in fit.physics.items()))
+    click.echo(f"  max envelope error {100 * fit.envelope_error:.2f} %  (paper: <= 2 %)")
+    for p, v in preds.items():
+        click.echo(f"predicted {p}: max envelope error {100 * v['envelope_error']:.2f} %")
+    if json_out:
+        json_out.parent.mkdir(parents=True, exist_ok=True)
+        json_out.write_text(json.dumps(out, indent=1) + "\n")
+    if params_out:
+        from ..diagnose.effects import model_file
+
+        model = records[0].params.replace(**fit.model_params(mass if mass is not None else records[0].params.m))
+        params_out.parent.mkdir(parents=True, exist_ok=True)
+        params_out.write_text(json.dumps(model_file(model), indent=1, sort_keys=True) + "\n")
+    if plot:
+        from ..diagnose.report import plot_envelopes
+
+        plot_envelopes({str(data[0]) + " (fit)": (fit.measured, fit.simulated)} | {
+            p: (v["measured"], v["simulated"]) for p, v in preds.items()}, plot)

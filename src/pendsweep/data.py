@@ -1,0 +1,272 @@
+"""Measured-data format v1: reader, writer and validation.
+
+A record is a uniformly sampled table with SI columns
+
+``t`` [s], ``theta`` [rad] (pendulum angle from the hanging equilibrium),
+``y`` [m] (pivot/oscillator displacement; the measured actuator displacement
+x in a substructured test), ``Fe`` [N] (external force on the (emulated)
+oscillator), and optionally ``y_cmd`` [m] (actuator command) and ``Fs`` [N]
+(measured interface force). A ``free_decay`` record needs only ``t, theta``.
+
+Metadata (kind, nominal params, optional forcing) sits in a sidecar
+``NAME.json`` next to ``NAME.csv``, or in the parquet key-value metadata under
+the key ``pendsweep``. :func:`read_free_swing` reads the raw encoder format of
+``shared/data/measured/free-swing-rotary-pendulum``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from .errors import ConfigError, ParameterError, ResultsError
+from .params import ModelParams
+from .results import atomic_write_table, read_metadata, with_metadata
+
+FORMAT_VERSION = 1
+KINDS = ("free_decay", "forced", "substructured")
+#: Required columns per kind.
+REQUIRED = {
+    "free_decay": ("t", "theta"),
+    "forced": ("t", "theta", "y", "Fe"),
+    "substructured": ("t", "theta", "y", "Fe", "y_cmd"),
+}
+#: Every column the format knows, with its unit.
+UNITS = {"t": "s", "theta": "rad", "y": "m", "Fe": "N", "y_cmd": "m", "Fs": "N"}
+#: Metadata params that are not ModelParams fields.
+EXTRA_PARAMS = ("tau",)
+#: Relative tolerance on the sample step for a "uniformly sampled" record.
+UNIFORM_RTOL = 1e-3
+
+
+@dataclass
+class Record:
+    """One measured record.
+
+    Attributes
+    ----------
+    data : DataFrame
+        Columns of :data:`UNITS` (at least those of ``REQUIRED[kind]``), float64.
+    kind : str
+        One of :data:`KINDS`.
+    params : ModelParams
+        The user's nominal model (package defaults for missing keys).
+    tau : float
+        Nominal actuator delay [s] (substructured records).
+    forcing : dict
+        Optional ``{"alpha": N, "fe": Hz}``.
+    name : str
+        Where the record came from.
+    """
+
+    data: pd.DataFrame
+    kind: str
+    params: ModelParams = field(default_factory=ModelParams)
+    tau: float = 0.0
+    forcing: dict[str, float] = field(default_factory=dict)
+    name: str = "record"
+
+    def __post_init__(self) -> None:
+        validate(self.data, self.kind, self.name)
+
+    @property
+    def t(self) -> np.ndarray:
+        return self.data["t"].to_numpy()
+
+    @property
+    def dt(self) -> float:
+        """Sample step [s]."""
+        t = self.t
+        return float((t[-1] - t[0]) / (len(t) - 1))
+
+    def channel(self, name: str) -> np.ndarray:
+        return np.ascontiguousarray(self.data[name].to_numpy(), dtype=np.float64)
+
+    def metadata(self) -> dict[str, Any]:
+        params = self.params.to_dict()
+        if self.kind == "substructured":
+            params["tau"] = self.tau
+        meta: dict[str, Any] = {"format": FORMAT_VERSION, "kind": self.kind, "params": params}
+        if self.forcing:
+            meta["forcing"] = dict(self.forcing)
+        return meta
+
+
+def validate(data: pd.DataFrame, kind: str, name: str = "record") -> None:
+    """Raise :class:`ConfigError` unless ``data`` is a valid record of ``kind``."""
+    if kind not in KINDS:
+        raise ConfigError(f"{name}: unknown kind {kind!r}; accepted kinds: {', '.join(KINDS)}")
+    missing = [c for c in REQUIRED[kind] if c not in data.columns]
+    if missing:
+        raise ConfigError(
+            f"{name}: missing column(s) {', '.join(missing)} for kind {kind!r}; "
+            f"required: {', '.join(REQUIRED[kind])}"
+        )
+    if len(data) < 3:
+        raise ConfigError(f"{name}: {len(data)} samples; a record needs at least 3")
+    for col in data.columns:
+        if col not in UNITS:
+            continue
+        try:
+            values = data[col].to_numpy(dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ConfigError(f"{name}: column {col!r} holds non-numeric values") from None
+        bad = ~np.isfinite(values)
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise ConfigError(
+                f"{name}: column {col!r} has {int(bad.sum())} NaN/inf value(s), first at row {i}; "
+                "all values must be finite"
+            )
+    t = data["t"].to_numpy(dtype=np.float64)
+    step = np.diff(t)
+    if (step <= 0).any():
+        i = int(np.argmax(step <= 0))
+        raise ConfigError(
+            f"{name}: time is not strictly increasing at row {i + 1} (t = {t[i]:g} then {t[i + 1]:g} s)"
+        )
+    mean = (t[-1] - t[0]) / (len(t) - 1)
+    worst = float(np.max(np.abs(step - mean)))
+    if worst > UNIFORM_RTOL * mean:
+        i = int(np.argmax(np.abs(step - mean)))
+        raise ConfigError(
+            f"{name}: time is not uniformly sampled: step {step[i]:g} s at row {i + 1} differs from the "
+            f"mean step {mean:g} s by more than {UNIFORM_RTOL:g} of it"
+        )
+
+
+def _parse_metadata(meta: Any, name: str) -> tuple[str, ModelParams, float, dict[str, float]]:
+    if not isinstance(meta, dict):
+        raise ConfigError(f"{name}: metadata must be a JSON object, got {type(meta).__name__}")
+    if "kind" not in meta:
+        raise ConfigError(f"{name}: metadata has no 'kind'; accepted kinds: {', '.join(KINDS)}")
+    kind = meta["kind"]
+    if kind not in KINDS:
+        raise ConfigError(f"{name}: unknown kind {kind!r}; accepted kinds: {', '.join(KINDS)}")
+    raw = dict(meta.get("params") or {})
+    tau = float(raw.pop("tau", 0.0))
+    if not (math.isfinite(tau) and tau >= 0):
+        raise ConfigError(f"{name}: tau = {tau!r} s must be finite and >= 0")
+    try:
+        params = ModelParams.from_mapping(raw)
+    except ParameterError as exc:
+        raise ConfigError(f"{name}: {exc}") from None
+    forcing = {k: float(v) for k, v in dict(meta.get("forcing") or {}).items()}
+    unknown = set(forcing) - {"alpha", "fe"}
+    if unknown:
+        raise ConfigError(f"{name}: unknown forcing key(s) {', '.join(sorted(unknown))}; accepted: alpha, fe")
+    return kind, params, tau, forcing
+
+
+def _mismatched_csv(path: Path) -> None:
+    """Raise if a CSV row has a different number of fields than the header."""
+    with open(path) as fh:
+        header = fh.readline().count(",")
+        for i, line in enumerate(fh, start=2):
+            if line.strip() and line.count(",") != header:
+                raise ConfigError(
+                    f"{str(path)!r}: mismatched lengths: line {i} has {line.count(',') + 1} fields, "
+                    f"the header has {header + 1}"
+                )
+
+
+def read_record(path: str | Path) -> Record:
+    """Read a format-v1 record (``.csv`` + ``.json`` sidecar, or ``.parquet``).
+
+    Files in the raw free-swing format (first line ``trigger_start_deg, ...``)
+    are read with :func:`read_free_swing`. Raises :class:`ConfigError` for an
+    invalid record and :class:`ResultsError` for an unreadable file.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ResultsError(f"no record file at {str(path)!r}")
+    name = str(path)
+    if path.suffix == ".parquet":
+        meta = read_metadata(path)
+        try:
+            data = pq.read_table(path).to_pandas()
+        except (OSError, pa.ArrowInvalid) as exc:
+            raise ResultsError(f"cannot read {name!r} as parquet: {exc}") from None
+    else:
+        with open(path) as fh:
+            first = fh.readline()
+        if first.startswith("trigger_start_deg"):
+            return read_free_swing(path)
+        sidecar = path.with_suffix(".json")
+        if not sidecar.is_file():
+            raise ConfigError(f"{name!r} has no metadata sidecar {str(sidecar)!r}")
+        try:
+            meta = json.loads(sidecar.read_text())
+        except json.JSONDecodeError as exc:
+            raise ConfigError(f"{str(sidecar)!r} is not valid JSON: {exc}") from None
+        _mismatched_csv(path)
+        try:
+            data = pd.read_csv(path)
+        except (pd.errors.ParserError, UnicodeDecodeError) as exc:
+            raise ConfigError(f"cannot parse {name!r} as CSV: {exc}") from None
+    kind, params, tau, forcing = _parse_metadata(meta, name)
+    return Record(data.astype({c: np.float64 for c in data.columns if c in UNITS}), kind, params, tau, forcing, name)
+
+
+def write_record(record: Record, path: str | Path) -> list[Path]:
+    """Write ``record`` as ``.parquet`` or as ``.csv`` plus a ``.json`` sidecar.
+
+    Returns the files written.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    cols = [c for c in UNITS if c in record.data.columns]
+    data = record.data[cols]
+    if path.suffix == ".parquet":
+        atomic_write_table(with_metadata(data, record.metadata()), path)
+        return [path]
+    if path.suffix != ".csv":
+        raise ConfigError(f"record path {str(path)!r} must end in .csv or .parquet")
+    sidecar = path.with_suffix(".json")
+    data.to_csv(path, index=False, float_format="%.10g")
+    sidecar.write_text(json.dumps(record.metadata(), indent=1, sort_keys=True))
+    return [path, sidecar]
+
+
+FREE_SWING_DIR = Path("shared/data/measured/free-swing-rotary-pendulum")
+
+
+def find_free_swing_data() -> Path | None:
+    """The shared real free-swing records: ``shared/...`` in an ancestor of this package, or None."""
+    for parent in Path(__file__).resolve().parents:
+        if (parent / FREE_SWING_DIR).is_dir():
+            return parent / FREE_SWING_DIR
+    return None
+
+
+def read_free_swing(path: str | Path) -> Record:
+    """Read a raw free-swing file (degrees, one sample a line, 3-value header).
+
+    Line 1 names ``trigger_start_deg, sample_rate, duration_sec``, line 2 gives
+    them, then one angle in degrees per line. The angle is converted to rad
+    and ``t`` starts at 0. Offset and release velocity are left to the fits.
+    """
+    path = Path(path)
+    name = str(path)
+    try:
+        with open(path) as fh:
+            header = [h.strip() for h in fh.readline().split(",")]
+            values = [float(v) for v in fh.readline().split(",")]
+            angles = np.array([float(line) for line in fh if line.strip()], dtype=np.float64)
+    except (OSError, ValueError) as exc:
+        raise ConfigError(f"{name!r} is not a raw free-swing file: {exc}") from None
+    if header[:2] != ["trigger_start_deg", "sample_rate"] or len(values) < 2:
+        raise ConfigError(f"{name!r}: expected header 'trigger_start_deg, sample_rate, duration_sec'")
+    rate = values[1]
+    if not (math.isfinite(rate) and rate > 0):
+        raise ConfigError(f"{name!r}: sample_rate = {rate!r} must be a positive number [Hz]")
+    data = pd.DataFrame({"t": np.arange(len(angles)) / rate, "theta": np.deg2rad(angles)})
+    return Record(data, "free_decay", ModelParams(), name=name)

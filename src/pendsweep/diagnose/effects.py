@@ -1,0 +1,106 @@
+"""The fixed vocabulary of candidate effects (model extensions).
+
+Each cause has one parameter. Parameters that are :class:`ModelParams` fields
+go into the extended-model params file; ``gain``, ``theta0``, ``tau`` and
+``gain_Fs`` describe the measurement chain of one test and stay on the data
+side (see ``docs/measured-data.md`` for how a sweep accounts for them).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from ..errors import ConfigError
+from ..params import ModelParams
+
+
+@dataclass(frozen=True)
+class Effect:
+    """One cause of the vocabulary.
+
+    Attributes
+    ----------
+    cause, param : str
+        Vocabulary name and the parameter it fits.
+    kinds : tuple of str
+        Record kinds on which the parameter is identifiable.
+    scale : float
+        Typical magnitude [param unit], used to scale the fit.
+    lower, upper : float
+        Physical bounds of the parameter.
+    unit, meaning : str
+    """
+
+    cause: str
+    param: str
+    kinds: tuple[str, ...]
+    scale: float
+    lower: float
+    upper: float
+    unit: str
+    meaning: str
+
+
+_ALL = ("free_decay", "forced", "substructured")
+_OSC = ("forced", "substructured")
+_INF = math.inf
+
+EFFECTS: dict[str, Effect] = {
+    e.cause: e
+    for e in (
+        Effect("coulomb_friction", "b1", _ALL, 3e-4, 0.0, _INF, "kg m^2/s^2", "pendulum Coulomb friction"),
+        Effect("viscous_damping", "b2", _ALL, 4.5e-5, 0.0, _INF, "kg m^2/s", "pendulum viscous damping"),
+        Effect("quadratic_drag", "b3", _ALL, 1e-6, 0.0, _INF, "kg m^2", "pendulum air drag"),
+        Effect("pendulum_length", "l", _ALL, 0.2, 1e-3, _INF, "m", "effective length"),
+        Effect("angle_offset", "theta0", _ALL, 0.01, -_INF, _INF, "rad", "encoder zero offset, measured = true + theta0"),
+        Effect("oscillator_damping", "C", _OSC, 20.0, 0.0, _INF, "kg/s", "oscillator damping"),
+        Effect("oscillator_stiffness", "K", _OSC, 1910.0, 1.0, _INF, "N/m", "oscillator stiffness"),
+        Effect("oscillator_mass", "M", _OSC, 10.9, 1e-2, _INF, "kg", "oscillator mass"),
+        Effect("spring_hardening", "k3", _OSC, 1e6, -_INF, _INF, "N/m^3", "restoring force K y + k3 y^3"),
+        Effect("forcing_gain", "gain", _OSC, 1.0, 1e-3, _INF, "-", "applied force = gain x recorded Fe"),
+        Effect("actuator_delay", "tau", ("substructured",), 0.01, 0.0, _INF, "s", "x(t) = y_cmd(t - tau)"),
+        Effect("platform_mass", "M2", ("substructured",), 0.9, 0.0, _INF, "kg", "platform mass"),
+        Effect("platform_damping", "C2", ("substructured",), 10.0, 0.0, _INF, "kg/s", "platform damping"),
+        Effect("force_sensor_gain", "gain_Fs", ("substructured",), 1.0, 1e-3, _INF, "-", "measured Fs = gain_Fs x true Fs"),
+    )
+}
+
+#: Parameters that live on the measurement side, with their neutral values.
+CHAIN_PARAMS = {"gain": 1.0, "theta0": 0.0, "tau": 0.0, "gain_Fs": 1.0}
+
+
+def applicable(kind: str) -> list[Effect]:
+    """Effects identifiable on a record of ``kind``."""
+    return [e for e in EFFECTS.values() if kind in e.kinds]
+
+
+def effect(cause: str) -> Effect:
+    if cause not in EFFECTS:
+        raise ConfigError(f"unknown cause {cause!r}; the vocabulary is: {', '.join(EFFECTS)}")
+    return EFFECTS[cause]
+
+
+def nominal_values(params: ModelParams, tau: float = 0.0) -> dict[str, float]:
+    """Every vocabulary parameter's nominal value: model fields plus chain parameters."""
+    values = params.to_dict()
+    values.update(CHAIN_PARAMS)
+    values["tau"] = tau
+    return values
+
+
+def split_values(values: dict[str, float]) -> tuple[ModelParams, dict[str, float]]:
+    """Split extended values into a validated ModelParams and the chain parameters."""
+    fields = ModelParams().to_dict()
+    model = ModelParams.from_mapping({k: v for k, v in values.items() if k in fields})
+    chain = {k: float(values[k]) for k in CHAIN_PARAMS if k in values}
+    return model, chain
+
+
+def model_file(model: ModelParams) -> dict[str, float]:
+    """A params file for ``pendsweep sweep --model``: every ModelParams field but the forcing.
+
+    ``alpha`` and ``fe`` are test conditions of the record, not physics, so a
+    sweep keeps its own forcing.
+    """
+    return {k: v for k, v in model.to_dict().items() if k not in ("alpha", "fe")}

@@ -1,0 +1,220 @@
+"""Replay a record: simulate its model driven by its recorded inputs.
+
+``free_decay``
+    Fixed pivot, single shooting over the whole record. The initial angle and
+    velocity (release velocity unknown) are nuisance parameters fitted with
+    every model.
+``forced``
+    Eqs. (1)-(2) driven by the recorded ``Fe``. Long horizons are meaningless
+    for chaotic motion, so the record is cut into short segments (``horizon``
+    seconds, 4 s by default) and each is simulated from the measured state at
+    its start (Savitzky-Golay estimates of y, ydot, theta, thetadot): a
+    short-horizon prediction error (multiple shooting with states taken from
+    the data).
+``substructured``
+    The substructuring loop (Eq. (3) numerical model, load-cell feedback of
+    Eq. (4), actuator ``x(t) = y_cmd(t - tau)``) driven by the recorded
+    ``Fe``, in short-horizon segments started from the measured ``y_cmd``
+    (as ``y*``) and pendulum state, with the measured command history
+    feeding the delayed actuator. Compared channels: y (= x), theta, y_cmd
+    and Fs when recorded. The numerical mass and damping ``M1 = M - M2``,
+    ``C1 = C - C2`` are code, so ``platform_mass``/``platform_damping``
+    change the physical M2/C2 only and ``oscillator_mass``/``_damping`` the
+    numerical M1/C1.
+
+The first ``train_fraction`` of the record trains the fits; the rest is held out.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.signal import savgol_filter
+
+from ..errors import ConfigError
+from ..kernels import driven_trace, pendulum_trace, substructured_replay
+from ..data import Record
+from .effects import nominal_values
+
+#: Channels compared per kind.
+CHANNELS = {"free_decay": ("theta",), "forced": ("y", "theta"), "substructured": ("y", "theta", "y_cmd", "Fs")}
+#: Default short-horizon segment length for forced records [s].
+DEFAULT_HORIZON = 4.0
+TRAIN_FRACTION = 0.6
+#: Largest integration step of free-swing replays [s] (the paper's 1 ms).
+MAX_STEP = 1e-3
+#: Savitzky-Golay window for state estimates [s] (cubic).
+SMOOTH_WINDOW = 0.05
+_KERNEL_ORDER = ("m", "l", "b1", "b2", "b3", "g", "M", "C", "K", "k3")
+NUISANCE = ("theta_init", "thetadot_init")
+
+
+def noise_std(x: np.ndarray) -> float:
+    """Sensor-noise standard deviation of a finely sampled channel.
+
+    Third differences remove the smooth signal (its contribution scales as
+    ``(omega dt)^3``); white noise of variance s^2 gives third differences of
+    variance 20 s^2.
+    """
+    return float(np.std(np.diff(x, 3)) / math.sqrt(20.0))
+
+
+def smoothed(x: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Cubic Savitzky-Golay estimates of ``x`` and its derivative [unit/s]."""
+    w = max(5, int(round(SMOOTH_WINDOW / dt)) | 1)
+    w = min(w, len(x) - 1 + len(x) % 2)
+    return savgol_filter(x, w, 3), savgol_filter(x, w, 3, deriv=1, delta=dt)
+
+
+def midpoint_values(f: np.ndarray) -> np.ndarray:
+    """Four-point (cubic) interpolation of ``f`` halfway between samples."""
+    h = 0.5 * (f[:-1] + f[1:])
+    if len(f) >= 4:
+        h[1:-1] = (-f[:-3] + 9.0 * f[1:-2] + 9.0 * f[2:-1] - f[3:]) / 16.0
+    return h
+
+
+class Replay:
+    """A record ready for simulation and comparison.
+
+    Parameters
+    ----------
+    record : Record
+    horizon : float, optional
+        Segment length [s] for forced records (default :data:`DEFAULT_HORIZON`).
+    train_fraction : float
+        Leading fraction of the samples used for fitting.
+    """
+
+    def __init__(self, record: Record, horizon: float | None = None, train_fraction: float = TRAIN_FRACTION):
+        if record.kind not in CHANNELS:
+            raise ConfigError(
+                f"kind {record.kind!r} cannot be replayed yet; supported kinds: {', '.join(CHANNELS)}"
+            )
+        if not 0.1 <= train_fraction <= 0.9:
+            raise ConfigError(f"train fraction {train_fraction!r} must lie in [0.1, 0.9]")
+        self.record = record
+        self.kind = record.kind
+        self.channels = tuple(c for c in CHANNELS[record.kind] if c in record.data)
+        self.dt = record.dt
+        self.n = len(record.data)
+        self.t = record.t - record.t[0]
+        self.meas = {c: record.channel(c) for c in self.channels}
+        self.scale = {}
+        for c in self.channels:
+            s = float(np.std(self.meas[c]))
+            if s == 0.0:
+                raise ConfigError(f"{record.name}: channel {c!r} is constant; nothing to compare")
+            self.scale[c] = s
+        self.noise = {c: noise_std(self.meas[c]) for c in self.channels}
+        self.n_train = int(round(train_fraction * self.n))
+        if self.n_train < 20 or self.n - self.n_train < 20:
+            raise ConfigError(f"{record.name}: {self.n} samples are too few to split into training and held-out parts")
+        self.nominal = nominal_values(record.params, record.tau)
+        est = {c: smoothed(record.channel(c), self.dt) for c in ("y", "theta", "y_cmd") if c in record.data}
+        if self.kind == "free_decay":
+            self.horizon = self.t[-1]
+            self.segments = [(0, self.n)]
+            self.initial_guess = {"theta_init": est["theta"][0][0], "thetadot_init": est["theta"][1][0]}
+        else:
+            self.horizon = DEFAULT_HORIZON if horizon is None else float(horizon)
+            if not (math.isfinite(self.horizon) and self.horizon > 20 * self.dt):
+                raise ConfigError(f"horizon = {horizon!r} s must exceed 20 samples ({20 * self.dt:g} s)")
+            h = int(round(self.horizon / self.dt))
+            self.segments = _cut(0, self.n_train, h) + _cut(self.n_train, self.n, h)
+            starts = np.array([s for s, _ in self.segments])
+            # y* of a substructured test is the command (no prediction).
+            y = est["y_cmd" if self.kind == "substructured" else "y"]
+            self.states0 = np.stack([y[0][starts], y[1][starts], est["theta"][0][starts], est["theta"][1][starts]], axis=1)
+            if self.kind == "substructured":
+                self.command = np.ascontiguousarray(record.channel("y_cmd"))
+                self.command_slope = np.ascontiguousarray(est["y_cmd"][1])
+            self.force = record.channel("Fe")
+            self.force_half = midpoint_values(self.force)
+            self.initial_guess = {}
+        self.fits_initial_state = self.kind == "free_decay"
+        # Free swings integrate with steps of at most MAX_STEP: the held sgn of the
+        # Coulomb term makes the model depend on the step.
+        self.substeps = max(1, math.ceil(self.dt / MAX_STEP - 1e-9))
+
+    # -- simulation -------------------------------------------------------------
+    def simulate(self, values: dict[str, float], stop: int | None = None) -> dict[str, np.ndarray]:
+        """Simulated measured channels for the samples ``[0, stop)``.
+
+        ``values`` maps vocabulary parameters (missing ones take the nominal)
+        and, for free decays, ``theta_init``/``thetadot_init``.
+        Non-finite output marks a diverged simulation.
+        """
+        stop = self.n if stop is None else stop
+        v = dict(self.nominal, **self.initial_guess)
+        v.update(values)
+        p = np.array([v[k] for k in _KERNEL_ORDER], dtype=np.float64)
+        theta0 = v["theta0"]
+        if self.kind == "free_decay":
+            out = np.empty((stop, 2))
+            state = np.array([v["theta_init"] - theta0, v["thetadot_init"]])
+            pendulum_trace(state, p, self.dt, self.substeps, out)
+            return {"theta": out[:, 0] + theta0}
+        if self.kind == "substructured":
+            return self._loop(v, p, theta0, stop)
+        sim = np.empty((stop, 4))
+        for k, (i0, i1) in enumerate(self.segments):
+            if i0 >= stop:
+                break
+            i1 = min(i1, stop)
+            state = self.states0[k].copy()
+            state[2] -= theta0
+            driven_trace(state, p, self.force[i0:i1], self.force_half[i0 : i1 - 1], v["gain"], self.dt, sim[i0:i1])
+        return {"y": sim[:, 0], "theta": sim[:, 2] + theta0}
+
+    def _loop(self, v: dict[str, float], p: np.ndarray, theta0: float, stop: int) -> dict[str, np.ndarray]:
+        sim = np.empty((stop, 4))
+        nom = self.nominal
+        # M1, C1 are the numerical model's code values: M and C move them, M2 and C2 do not.
+        M1 = v["M"] - nom["M2"]
+        C1 = v["C"] - nom["C2"]
+        if M1 <= 0:
+            sim.fill(np.nan)
+        for k, (i0, i1) in enumerate(self.segments):
+            if i0 >= stop or M1 <= 0:
+                break
+            state = self.states0[k].copy()
+            state[2] -= theta0
+            cmd, cmdd = self.command.copy(), self.command_slope.copy()
+            substructured_replay(
+                state, p, M1, C1, v["M2"], v["C2"], self.force, self.force_half, v["gain"], v["gain_Fs"],
+                v["tau"], self.dt, 1, cmd, cmdd, i0, sim[i0 : min(i1, stop)],
+            )
+        return {"y": sim[:, 0], "theta": sim[:, 1] + theta0, "Fs": sim[:, 2], "y_cmd": sim[:, 3]}
+
+    # -- errors -----------------------------------------------------------------
+    def residuals(self, sim: dict[str, np.ndarray], part: slice) -> np.ndarray:
+        """Normalised residuals (sim - measured) / std(measured), channels stacked."""
+        r = [(sim[c][part] - self.meas[c][part]) / self.scale[c] for c in self.channels]
+        return np.concatenate(r)
+
+    def nrmse(self, sim: dict[str, np.ndarray], part: slice) -> float:
+        """RMS over channels of RMSE / std(measured channel) on ``part``."""
+        r = self.residuals(sim, part)
+        return float(np.sqrt(np.mean(r * r))) if np.all(np.isfinite(r)) else math.inf
+
+    @property
+    def train(self) -> slice:
+        return slice(0, self.n_train)
+
+    @property
+    def held_out(self) -> slice:
+        return slice(self.n_train, self.n)
+
+    def noise_floor(self) -> float:
+        """NRMSE that sensor noise alone gives, estimated from the data."""
+        return float(np.sqrt(np.mean([(self.noise[c] / self.scale[c]) ** 2 for c in self.channels])))
+
+
+def _cut(start: int, stop: int, h: int) -> list[tuple[int, int]]:
+    """Segments of about ``h`` samples covering ``[start, stop)``; a short tail joins the last."""
+    edges = list(range(start, stop, h)) + [stop]
+    if len(edges) > 2 and edges[-1] - edges[-2] < h // 2:
+        del edges[-2]
+    return list(zip(edges[:-1], edges[1:]))

@@ -1,0 +1,260 @@
+"""Markdown report, figures and the extended-model params file of a diagnosis."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..data import UNITS
+from .effects import EFFECTS, model_file, split_values
+from .fit import DELTA_BIC, FLOOR_SHARE, P_VALUE, Diagnosis
+from .signatures import backbone, cross_correlation, extrema, residual_spectrum, summarize
+
+#: A runner-up whose held-out error is within this factor of the best's is reported as not distinguishable.
+AMBIGUOUS_RATIO = 1.1
+
+
+def extended_params(diag: Diagnosis) -> dict[str, float]:
+    """The extended model as a JSON-able mapping of ModelParams fields.
+
+    The nominal model with the named cause's estimate applied when it is a
+    ModelParams field; chain parameters (gain, theta0, tau, gain_Fs) and the
+    record's forcing (alpha, fe) are not model physics and are left out.
+    """
+    values = dict(diag.replay.nominal)
+    if diag.best is not None:
+        values.update(diag.best.estimate)
+        # The numerical M1 = M - M2 and C1 = C - C2 are code: a different
+        # platform changes the complete system's totals.
+        if "M2" in diag.best.estimate:
+            values["M"] = diag.replay.nominal["M"] - diag.replay.nominal["M2"] + values["M2"]
+        if "C2" in diag.best.estimate:
+            values["C"] = diag.replay.nominal["C"] - diag.replay.nominal["C2"] + values["C2"]
+    model, _ = split_values(values)
+    return model_file(model)
+
+
+def ambiguous_with(diag: Diagnosis) -> list[str]:
+    """Runner-up causes (of the same round) that predict the held-out part about as well as the best."""
+    best = diag.best or (diag.candidates[0] if diag.candidates else None)
+    if best is None:
+        return []
+    floor = diag.noise_floor
+    # Compare the errors in excess of the noise floor.
+    excess = math.sqrt(max(best.error_after**2 - floor**2, 0.0))
+    return [
+        c.cause
+        for c in diag.candidates
+        if c is not best
+        and len(c.causes) == len(best.causes)
+        and math.sqrt(max(c.error_after**2 - floor**2, 0.0)) <= AMBIGUOUS_RATIO * excess + 0.1 * floor
+        and c.error_after < diag.nominal.error_after
+    ]
+
+
+def _figures(diag: Diagnosis, outdir: Path) -> list[Path]:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rp = diag.replay
+    t = rp.t
+    ext = diag.best or diag.nominal
+    files = []
+    units = UNITS
+
+    fig, axes = plt.subplots(len(rp.channels), 1, figsize=(10, 3 * len(rp.channels)), sharex=True, squeeze=False)
+    for ax, c in zip(axes[:, 0], rp.channels):
+        ax.plot(t, rp.meas[c], "k.", ms=1.5, label="measured")
+        ax.plot(t, diag.nominal.sim[c], "C0-", lw=0.8, label="nominal")
+        if diag.best:
+            ax.plot(t, ext.sim[c], "C3--", lw=0.8, label=f"extended ({diag.cause})")
+        ax.axvline(t[rp.n_train], color="0.5", ls=":", label="held-out from here")
+        ax.set_ylabel(f"{c} [{units[c]}]")
+    axes[0, 0].legend(loc="upper right", fontsize=8)
+    axes[-1, 0].set_xlabel("t [s]")
+    files.append(_save(fig, outdir / "measured_vs_models.png"))
+
+    fig, axes = plt.subplots(len(rp.channels), 1, figsize=(10, 3 * len(rp.channels)), sharex=True, squeeze=False)
+    for ax, c in zip(axes[:, 0], rp.channels):
+        ax.plot(t, diag.nominal.sim[c] - rp.meas[c], "C0-", lw=0.6, label="nominal")
+        ax.plot(t, ext.sim[c] - rp.meas[c], "C3-", lw=0.6, label="extended")
+        ax.axvline(t[rp.n_train], color="0.5", ls=":")
+        ax.set_ylabel(f"residual {c} [{units[c]}]")
+    axes[0, 0].legend(loc="upper right", fontsize=8)
+    axes[-1, 0].set_xlabel("t [s]")
+    files.append(_save(fig, outdir / "residuals.png"))
+
+    ncol = 2 if rp.kind == "free_decay" else 3
+    fig, axes = plt.subplots(1, ncol + 1, figsize=(4.2 * (ncol + 1), 3.6))
+    ax = axes[0]
+    for c in rp.channels:
+        for fit, style in ((diag.nominal, "-"), (ext, "--")):
+            res = (fit.sim[c] - rp.meas[c]) / rp.scale[c]
+            if np.all(np.isfinite(res)):
+                sp = residual_spectrum(res, rp.dt)
+                ax.semilogy(sp.frequency, sp.psd, style, lw=0.8, label=f"{c} {'nominal' if fit is diag.nominal else 'extended'}")
+    ax.set_xlim(0, min(20.0, 0.5 / rp.dt))
+    ax.set_xlabel("f [Hz]")
+    ax.set_title("spectra of residual / std(channel)", fontsize=9)
+    ax.legend(fontsize=7)
+    k = 1
+    if rp.kind != "free_decay":
+        ax = axes[k]
+        for c in rp.channels:
+            res = diag.nominal.sim[c] - rp.meas[c]
+            if np.all(np.isfinite(res)):
+                xc = cross_correlation(res, rp.force, rp.dt, 0.1)
+                ax.plot(xc.lag, xc["corr"], label=c)
+        ax.set_xlabel("lag [s]")
+        ax.set_title("corr(nominal residual, Fe)", fontsize=9)
+        ax.legend(fontsize=7)
+        k += 1
+    ex_m = extrema(t, rp.meas["theta"], 3 * rp.noise["theta"] + 0.005)
+    ax, ax2 = axes[k], axes[k + 1]
+    lines = ("-", "--") if rp.kind == "free_decay" else ("", "")  # forced swings: clouds, not curves
+    for label, theta, style in (("measured", rp.meas["theta"], "k."), ("nominal", diag.nominal.sim["theta"], "C0." + lines[0]), ("extended", ext.sim["theta"], "C3x" + lines[1])):
+        if not np.all(np.isfinite(theta)):
+            continue
+        ex = extrema(t, theta, 3 * rp.noise["theta"] + 0.005)
+        if len(ex) < 3:
+            continue
+        amp = np.abs(ex.theta.to_numpy())
+        ax.plot(0.5 * (amp[:-1] + amp[1:]), amp[:-1] - amp[1:], style, ms=3, lw=0.8, label=label)
+        bb = backbone(ex)
+        ax2.plot(bb.amplitude, bb.frequency, style, ms=3, lw=0.8, label=label)
+    ax.set_xlabel("amplitude [rad]")
+    ax.set_ylabel("decrement per half cycle [rad]")
+    ax.set_title("decay: constant = Coulomb, proportional = viscous", fontsize=9)
+    ax.legend(fontsize=7)
+    if len(ex_m):
+        a = np.linspace(0, np.abs(ex_m.theta).max(), 50)
+        f0 = math.sqrt(rp.nominal["g"] / rp.nominal["l"]) / (2 * math.pi)
+        ax2.plot(a, f0 * (1 - a * a / 16), "0.6", lw=0.8, label="ideal pendulum (nominal l)")
+    ax2.set_xlabel("amplitude [rad]")
+    ax2.set_ylabel("swing frequency [Hz]")
+    ax2.set_title("amplitude-dependent frequency", fontsize=9)
+    ax2.legend(fontsize=7)
+    files.append(_save(fig, outdir / "signatures.png"))
+    return files
+
+
+def _save(fig, path: Path) -> Path:
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
+    return path
+
+
+def _fmt(x: float) -> str:
+    return f"{x:.4g}"
+
+
+def write_report(diag: Diagnosis, outdir: Path, source: str) -> list[Path]:
+    """Write ``report.md``, its figures and ``extended.json`` into ``outdir``."""
+    outdir = Path(outdir)
+    outdir.mkdir(parents=True, exist_ok=True)
+    rp = diag.replay
+    js = diag.to_json()
+    files = _figures(diag, outdir)
+    params_file = outdir / "extended.json"
+    params_file.write_text(json.dumps(extended_params(diag), indent=1, sort_keys=True))
+    files.append(params_file)
+    sig = summarize(rp, diag.nominal.sim)
+    method = (
+        "single shooting over the whole record, initial angle and velocity fitted with every model"
+        if rp.kind == "free_decay"
+        else f"short-horizon prediction error: {len(rp.segments)} segments of about {rp.horizon:g} s, "
+        "each started from the measured state (Savitzky-Golay estimates)"
+    )
+    lines = [
+        f"# Diagnosis of `{source}`",
+        "",
+        f"Kind `{rp.kind}`, {rp.n} samples at {1 / rp.dt:g} Hz; channels {', '.join(rp.channels)}. "
+        f"Comparison: {method}. Training part: first {rp.n_train} samples; held-out: the remaining {rp.n - rp.n_train}.",
+        "",
+        "## Verdict",
+        "",
+        f"**cause: `{js['cause']}`**" + (f" — {', '.join(EFFECTS[c].meaning for c in diag.best.causes)}" if diag.best else ""),
+        "",
+        "| quantity | value |",
+        "|---|---|",
+        f"| held-out NRMSE, nominal (error_before) | {_fmt(js['error_before'])} |",
+        f"| held-out NRMSE, extended (error_after) | {_fmt(js['error_after'])} |",
+        f"| gain = 1 - after/before | {_fmt(js['gain'])} |",
+        f"| noise floor (sensor-noise NRMSE from the data) | {_fmt(diag.noise_floor)} |",
+    ]
+    for c in diag.best.causes if diag.best else ():
+        p = EFFECTS[c].param
+        lines.append(f"| estimate {p} [{EFFECTS[c].unit}] | {_fmt(js['estimate'][p])} ± {_fmt(js['uncertainty'][p])} |")
+    for t, against in ((diag.tests, "the nominal"), (diag.tests.get("second_round", {}), "the first cause alone")):
+        if "best" in t:
+            lines += [
+                "",
+                f"Tests on the best candidate `{t['best']}` against {against}: held-out MSE reduction {_fmt(t['reduction'])} "
+                f"(needed > {FLOOR_SHARE:g} x floor^2 = {_fmt(t['reduction_needed'])}); "
+                f"block t test p = {_fmt(t['p_value'])} (needed < {P_VALUE:g}); "
+                f"BIC improvement {_fmt(t['delta_bic'])} (needed > {DELTA_BIC:g}).",
+            ]
+    amb = ambiguous_with(diag)
+    if amb:
+        lines += ["", f"Not distinguishable on this record from: {', '.join(f'`{a}`' for a in amb)} "
+                  "(held-out errors within 10% above the noise floor). A record with more amplitude range or a second forcing tone separates them."]
+    lines += ["", "## Candidates (sorted by held-out NRMSE)", "", "| cause | estimate | ± | held-out NRMSE | BIC (training) |", "|---|---|---|---|---|"]
+    for c in diag.candidates:
+        est = ", ".join(f"{p} = {_fmt(v)}" for p, v in c.estimate.items())
+        err = ", ".join(_fmt(c.stderr[p]) for p in c.estimate)
+        lines.append(f"| `{c.cause}` | {est} | {err} | {_fmt(c.error_after)} | {c.bic:.1f} |")
+    lines.append(f"| (nominal) | | | {_fmt(diag.nominal.error_after)} | {diag.nominal.bic:.1f} |")
+    lines += ["", "## Signature diagnostics (nominal model)", "", "| signature | value |", "|---|---|"]
+    lines += [f"| {k} | {_fmt(v)} |" for k, v in sig.items()]
+    lines += [
+        "",
+        "Decrement per half cycle is fitted as c0 + c1 A + c2 A^2: a dominant constant share points to Coulomb friction, "
+        "a proportional one to viscous damping, a quadratic one to air drag. A residual mean or a turning-point midline "
+        "away from zero points to an angle offset; a peak of corr(residual, Fe) away from zero lag to a delay.",
+        "",
+        "![measured vs models](measured_vs_models.png)",
+        "",
+        "![residuals](residuals.png)",
+        "",
+        "![signatures](signatures.png)",
+        "",
+        "## Extended model",
+        "",
+        "`extended.json` holds every ModelParams field of the extended model; run a sweep with it by "
+        "`pendsweep sweep ... --model extended.json`. Measurement-chain parameters (gain, theta0, tau, gain_Fs) are not "
+        "physics of the system and are not in the file: correct the recorded force by gain, the angle by theta0.",
+    ]
+    report = outdir / "report.md"
+    report.write_text("\n".join(lines) + "\n")
+    return [report] + files
+
+
+
+def plot_envelopes(curves: dict[str, tuple[np.ndarray, np.ndarray]], path: Path) -> Path:
+    """Measured (dots) and simulated (lines) turning-point amplitudes against time.
+
+    ``curves`` maps a label to ``(measured, simulated)`` arrays of shape (k, 2)
+    holding ``t [s], amplitude [rad]``.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4))
+    for i, (label, (meas, sim)) in enumerate(curves.items()):
+        ax.plot(meas[:, 0], np.rad2deg(meas[:, 1]), "o", ms=3, color=f"C{i}", label=f"{Path(label).name} measured")
+        ax.plot(sim[:, 0], np.rad2deg(sim[:, 1]), "-", color=f"C{i}", lw=1, label="simulated")
+    ax.set_xlabel("t from the first fitted turning point [s]")
+    ax.set_ylabel("amplitude [deg]")
+    ax.legend(fontsize=7)
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    return _save(fig, Path(path))
