@@ -231,3 +231,16 @@ def test_hopf_simulate_rows_run_batched_in_lockstep_and_match_the_scalar_kernel(
         assert row["alpha_H"] == ref["alpha_H"]  # the same bisection decisions
         assert row["growth_above"] == pytest.approx(ref["growth_above"], rel=1e-6)
         assert row["growth_below"] == pytest.approx(ref["growth_below"], rel=1e-6)
+
+
+def test_concurrent_batches_from_threads_equal_sequential_ones():
+    """Hopf and sweep tasks may call the batched kernel from several threads at once."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    batches = [[TABLE_IV.replace(alpha=a) for a in np.linspace(lo, lo + 10, 24)] for lo in (5.0, 25.0)]
+    states = np.tile([0.0, 0.0, 0.1, 0.0], (24, 1))
+    sequential = [run_batch(b, states, 3, 2).records for b in batches]
+    with ThreadPoolExecutor(2) as pool:
+        concurrent = list(pool.map(lambda b: run_batch(b, states, 3, 2).records, batches))
+    for a, b in zip(sequential, concurrent):
+        np.testing.assert_array_equal(a, b)

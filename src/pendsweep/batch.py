@@ -9,6 +9,7 @@ chunks, and runs the chunks on all numba threads.
 
 from __future__ import annotations
 
+import threading
 from typing import NamedTuple, Sequence
 
 import numba as nb
@@ -22,6 +23,11 @@ from .params import ModelParams
 
 #: Points integrated in lockstep by one thread (a chunk's working set stays in L1/L2).
 DEFAULT_CHUNK = 128
+
+# One batched launch at a time per process: each already uses every core, and
+# numba's fallback threading layer (workqueue) aborts on concurrent launches
+# (e.g. Hopf tasks on several local threads).
+_LAUNCH = threading.Lock()
 
 
 class BatchRun(NamedTuple):
@@ -131,15 +137,16 @@ def run_batch(
     st = np.zeros(n, dtype=np.int64)
     dn = np.zeros(n, dtype=np.int64)
     bounds = chunk_bounds(sorted_steps, int(chunk))
-    previous = nb.get_num_threads()
-    # No more threads than chunks: an idle thread only waits at the barrier.
-    nb.set_num_threads(max(1, min(int(threads or previous), nb.config.NUMBA_NUM_THREADS, len(bounds) - 1)))
-    try:
-        batched_periods(
-            soa, p, alpha, fe, sorted_steps, int(transient_periods), signum == "stage", bounds, out, st, dn
-        )
-    finally:
-        nb.set_num_threads(previous)
+    with _LAUNCH:
+        previous = nb.get_num_threads()
+        # No more threads than chunks: an idle thread only waits at the barrier.
+        nb.set_num_threads(max(1, min(int(threads or previous), nb.config.NUMBA_NUM_THREADS, len(bounds) - 1)))
+        try:
+            batched_periods(
+                soa, p, alpha, fe, sorted_steps, int(transient_periods), signum == "stage", bounds, out, st, dn
+            )
+        finally:
+            nb.set_num_threads(previous)
     records[order] = out
     final = np.empty_like(states)
     final[order] = soa.T
