@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 import os
 import re
+import sys
 import time
 from pathlib import Path
 from typing import Any, Callable
@@ -265,6 +266,7 @@ def bench_throughput(quick: bool) -> dict:
         jax_run = jax_rk4_factory()
     except ImportError:
         jax_note = "jax not installed: pip install 'pendsweep[bench]' to add this peer"
+        print(f"throughput: JAX row skipped ({jax_note})", file=sys.stderr)
     else:
         import jax
 
