@@ -158,3 +158,11 @@ def test_killed_sweep_resumes_without_loss_or_duplication(tmp_path):
     reference = run_sweep(SweepConfig("alpha", tuple(value_range(0, 45, 0.5)), transient_periods=60, record_periods=10))
     assert not resumed.duplicated(["direction", "point", "start", "period"]).any()
     pd.testing.assert_frame_equal(resumed, reference)
+
+
+def test_result_files_get_normal_permissions(tmp_path):
+    out = tmp_path / "perm.parquet"
+    run_sweep(SweepConfig("alpha", (1.0,), **SHORT), out)
+    umask = os.umask(0o022)
+    os.umask(umask)
+    assert out.stat().st_mode & 0o777 == 0o666 & ~umask

@@ -28,6 +28,10 @@ from .errors import ResultsError
 
 METADATA_KEY = b"pendsweep"
 
+# Read once at import: os.umask can only be read by setting it, which is not thread-safe.
+_UMASK = os.umask(0o022)
+os.umask(_UMASK)
+
 
 def config_hash(config: dict[str, Any]) -> str:
     """Stable hash of a JSON-able configuration (identifies resumable runs)."""
@@ -68,6 +72,8 @@ def atomic_write_table(table: pa.Table, path: Path) -> None:
     path = Path(path)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
+        # mkstemp creates 0600 files; results get the permissions of any normal file.
+        os.fchmod(fd, 0o666 & ~_UMASK)
         with os.fdopen(fd, "wb") as fh:
             pq.write_table(table, fh)
             fh.flush()
