@@ -5,7 +5,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: setup run test test-all figures bench clean
+.PHONY: setup run test figures bench clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -18,10 +18,7 @@ setup: $(STAMP)  ## create .venv and install pendsweep with its test tools
 run: $(STAMP)  ## the main job: Fig. 11(a) sweep -> results/fig11a.parquet and results/figures/fig11a.png
 	$(BIN)/pendsweep run sweeps/fig11a.toml
 
-test: $(STAMP)  ## the test suite (slow checks excluded)
-	$(BIN)/python -m pytest -x -q -m "not slow"
-
-test-all: $(STAMP)  ## every test, slow ones included
+test: $(STAMP)  ## the test suite
 	$(BIN)/python -m pytest -x -q
 
 figures: $(STAMP)  ## regenerate every figure into results/figures/
