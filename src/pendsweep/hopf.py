@@ -518,7 +518,7 @@ def run_hopf(
         if store is not None:
             store.flush()
     if store is not None:
-        return _ordered(store.finalize(KEY_COLUMNS), config)
+        return _ordered(store.finalize(), config)
     return _ordered(pd.concat(frames, ignore_index=True), config)
 
 

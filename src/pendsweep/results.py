@@ -127,8 +127,10 @@ class ResultStore:
     metadata : dict
         Resolved configuration and provenance; ``metadata["config_hash"]``
         identifies runs that may resume each other.
-    key_columns : sequence of str
-        Columns that identify a unit of work (e.g. ``direction, point, start``).
+    row_columns : sequence of str
+        Columns that identify one row (e.g. ``direction, point, start,
+        period``); duplicates left by a crash are dropped on them and the
+        final file is sorted by them.
     overwrite : bool
         Discard any previous file or parts at ``path``.
     flush_points, flush_seconds : int, float
@@ -139,14 +141,14 @@ class ResultStore:
         self,
         path: Path,
         metadata: dict[str, Any],
-        key_columns: Iterable[str],
+        row_columns: Iterable[str],
         overwrite: bool = False,
         flush_points: int = 16,
         flush_seconds: float = 1.0,
     ) -> None:
         self.path = Path(path)
         self.metadata = metadata
-        self.key_columns = list(key_columns)
+        self.row_columns = list(row_columns)
         self.parts = self.path.with_name(self.path.name + ".parts")
         self.flush_points = flush_points
         self.flush_seconds = flush_seconds
@@ -195,8 +197,7 @@ class ResultStore:
         df = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
         if not df.empty:
             # A part may repeat a unit only if a crash hit between two renames; keep one copy.
-            unit_rows = self.key_columns + [c for c in ("period",) if c in df.columns]
-            df = df.drop_duplicates(subset=unit_rows, keep="last")
+            df = df.drop_duplicates(subset=self.row_columns, keep="last")
         return df, states
 
     # -- writing --------------------------------------------------------------
@@ -220,11 +221,11 @@ class ResultStore:
         self._buffer, self._buffer_states, self._buffered_units = [], {}, 0
         self._last_flush = time.monotonic()
 
-    def finalize(self, sort_by: list[str]) -> pd.DataFrame:
+    def finalize(self) -> pd.DataFrame:
         """Merge parts into the final file atomically and remove the parts."""
         self.flush()
         df, states = self.done()
-        df = df.sort_values(sort_by, kind="stable").reset_index(drop=True)
+        df = df.sort_values(self.row_columns, kind="stable").reset_index(drop=True)
         meta = dict(self.metadata, final_states=states, completed=time.strftime("%Y-%m-%dT%H:%M:%S%z"))
         atomic_write_table(with_metadata(df, meta), self.path)
         shutil.rmtree(self.parts, ignore_errors=True)

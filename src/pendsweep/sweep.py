@@ -222,6 +222,11 @@ def multistart_initials(config: SweepConfig, point: int) -> np.ndarray:
     return out
 
 
+def unit_key(direction: str, point: int, start: int) -> str:
+    """Identifier of one unit of work in result stores and resume bookkeeping."""
+    return f"{direction}:{int(point)}:{int(start)}"
+
+
 @dataclass
 class PointResult:
     """One finished unit of work, ready to be written."""
@@ -236,7 +241,7 @@ class PointResult:
 
     @property
     def key(self) -> str:
-        return f"{self.direction}:{self.point}:{self.start}"
+        return unit_key(self.direction, self.point, self.start)
 
 
 def result_rows(config: SweepConfig, r: PointResult) -> pd.DataFrame:
@@ -260,7 +265,7 @@ def _continue_branch(config, backend, direction, indices, resume) -> Iterator[Po
     state = None  # None: start (or restart) from config.initial
     kick_next = False
     for i in indices:
-        key = f"{direction}:{i}:0"
+        key = unit_key(direction, i, 0)
         if key in resume:
             info = resume[key]
             state = np.asarray(info["state"], dtype=np.float64) if info["ok"] else None
@@ -297,10 +302,12 @@ def _independent_point(config, backend, i, starts_done) -> list[PointResult]:
 
 def _batched_units(config, backend, units, threads) -> list[PointResult]:
     """Independent ``(point, start)`` units in one call of the backend's batched kernel."""
-    params, states = [], []
+    params, states, initials = [], [], {}
     for i, s in units:
         params.append(config.params_at(config.values[i]))
-        ic = multistart_initials(config, i)[s] if config.mode == "multistart" else config.initial
+        if config.mode == "multistart" and i not in initials:
+            initials[i] = multistart_initials(config, i)
+        ic = initials[i][s] if config.mode == "multistart" else config.initial
         states.append(backend.initial_state(params[-1], *ic))
     runs = backend.run_points(params, np.array(states), config.transient_periods, config.record_periods, threads)
     return [
@@ -318,13 +325,15 @@ def _independent_tasks(config, backend, resume, n_jobs, task_points) -> tuple[li
     """
     n_starts = config.starts if config.mode == "multistart" else 1
     if hasattr(backend, "run_points"):
-        units = [(i, s) for i in range(len(config.values)) for s in range(n_starts) if f"none:{i}:{s}" not in resume]
+        units = [
+            (i, s) for i in range(len(config.values)) for s in range(n_starts) if unit_key("none", i, s) not in resume
+        ]
         threads = None if n_jobs < 1 else n_jobs
         chunks = [units[k : k + task_points] for k in range(0, len(units), task_points)]
         return [functools.partial(_batched_units, config, backend, c, threads) for c in chunks], 1
     tasks = []
     for i in range(len(config.values)):
-        starts_done = {int(k.split(":")[2]) for k in resume if k.startswith(f"none:{i}:")}
+        starts_done = {s for s in range(n_starts) if unit_key("none", i, s) in resume}
         if len(starts_done) < n_starts:
             tasks.append(functools.partial(_independent_point, config, backend, i, starts_done))
     return tasks, n_jobs
@@ -374,7 +383,7 @@ def run_sweep(
 
     backend = config.make_backend()
     metadata = sweep_metadata(config)
-    store = ResultStore(output, metadata, KEY_COLUMNS, overwrite=overwrite) if output is not None else None
+    store = ResultStore(output, metadata, KEY_COLUMNS + ["period"], overwrite=overwrite) if output is not None else None
     done_df, done_states = store.done() if store is not None else (pd.DataFrame(), {})
     if store is not None and store.complete:
         return done_df
@@ -405,7 +414,7 @@ def run_sweep(
         if store is not None:
             store.flush()
     if store is not None:
-        return store.finalize(KEY_COLUMNS + ["period"])
+        return store.finalize()
     df = pd.concat(frames, ignore_index=True)
     return df.sort_values(KEY_COLUMNS + ["period"], kind="stable").reset_index(drop=True)
 
@@ -416,7 +425,7 @@ def _resume_info(done_df: pd.DataFrame, states: dict[str, list[float]], threshol
         return {}
     info = {}
     for (d, p, s), g in done_df.groupby(["direction", "point", "start"], sort=False):
-        key = f"{d}:{int(p)}:{int(s)}"
+        key = unit_key(d, p, s)
         ok = bool((g["status"] == "ok").all())
         info[key] = {
             "state": states.get(key),

@@ -18,6 +18,9 @@ from typing import Any
 from .errors import ConfigError
 from .sweep import SweepConfig, value_range
 
+#: The repository's ``sweeps/`` folder (figures and benchmarks read the paper's sweeps from it).
+SWEEPS_DIR = Path(__file__).resolve().parents[2] / "sweeps"
+
 _SWEEP_KEYS = {
     "mode", "direction", "transient_periods", "record_periods", "initial",
     "kick", "rest_threshold", "starts", "seed",

@@ -5,7 +5,6 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 from scipy.integrate import solve_ivp
@@ -13,10 +12,9 @@ from scipy.integrate import solve_ivp
 from ..backends import make_backend
 from ..params import FIG9_PO, ModelParams
 from ..sweep import run_sweep
-from ..sweepfile import load_sweep
+from ..sweepfile import SWEEPS_DIR, load_sweep
 from . import benchmark, best_of
 
-SWEEPS = Path(__file__).resolve().parents[3] / "sweeps"
 
 
 class _Stalled(Exception):
@@ -73,7 +71,7 @@ def bench_core(quick: bool) -> dict:
     steps = periods * backend.steps_per_period(FIG9_PO)
     t_point = best_of(lambda: backend.run_point(FIG9_PO, state, periods - 20 if periods > 20 else 0, 20), 5)
 
-    spec = load_sweep(SWEEPS / "fig11a.toml")
+    spec = load_sweep(SWEEPS_DIR / "fig11a.toml")
     config = spec.config
     if quick:
         config = replace(config, values=config.values[::10], transient_periods=10, record_periods=10)

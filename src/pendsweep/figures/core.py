@@ -15,11 +15,9 @@ from ..backends import make_backend  # noqa: E402
 from ..params import FIG8, FIG9_CO, FIG9_PO  # noqa: E402
 from ..plotting import plot_files  # noqa: E402
 from ..sweep import run_sweep  # noqa: E402
-from ..sweepfile import load_sweep  # noqa: E402
+from ..sweepfile import SWEEPS_DIR, load_sweep  # noqa: E402
 from . import figure  # noqa: E402
 
-#: Folder of the declarative sweeps (the repository's ``sweeps/``).
-SWEEPS = Path(__file__).resolve().parents[3] / "sweeps"
 
 
 def fig8_traces(quick: bool):
@@ -84,7 +82,7 @@ def fig9(outdir: Path, quick: bool) -> list[Path]:
 
 
 def _sweep_figure(name: str, outdir: Path, quick: bool) -> list[Path]:
-    spec = load_sweep(SWEEPS / f"{name}.toml")
+    spec = load_sweep(SWEEPS_DIR / f"{name}.toml")
     config, output = spec.config, spec.output
     if quick:
         from dataclasses import replace

@@ -22,10 +22,9 @@ from ..hybrid import run_trace  # noqa: E402
 from ..params import FIG9_CO, FIG9_PO, ModelParams  # noqa: E402
 from ..plotting import draw_bifurcation  # noqa: E402
 from ..sweep import run_sweep, sweep_metadata  # noqa: E402
-from ..sweepfile import load_sweep  # noqa: E402
 from ..sync import TABLE_I, SyncReport, error_psd, sync_ratio  # noqa: E402
 from . import figure  # noqa: E402
-from .core import SWEEPS  # noqa: E402
+from ..sweepfile import SWEEPS_DIR, load_sweep  # noqa: E402
 
 INITIAL = (0.0, 0.0, 0.1, 0.0)
 CASES = {"PO": FIG9_PO, "CO": FIG9_CO}
@@ -73,7 +72,7 @@ def _hybrid_sweeps(name: str, quick: bool):
 
     The substructured sweep skips values with ``M <= M2`` (no numerical mass left).
     """
-    config = load_sweep(SWEEPS / f"{name}.toml").config
+    config = load_sweep(SWEEPS_DIR / f"{name}.toml").config
     if quick:
         config = replace(config, values=config.values[::10], transient_periods=10, record_periods=5)
     out = {}
