@@ -154,9 +154,7 @@ class ResultStore:
         self.flush_seconds = flush_seconds
         self._buffer: list[pd.DataFrame] = []
         self._buffer_states: dict[str, list[float]] = {}
-        self._buffered_units = 0
         self._last_flush = time.monotonic()
-        self._part_counter = 0
         check_writable(self.path)
         if overwrite:
             if self.parts.exists():
@@ -205,9 +203,8 @@ class ResultStore:
         """Buffer one finished unit of work and persist when the buffer is due."""
         self._buffer.append(rows)
         self._buffer_states[key] = final_state
-        self._buffered_units += 1
         due = time.monotonic() - self._last_flush >= self.flush_seconds
-        if self._buffered_units >= self.flush_points or due:
+        if len(self._buffer) >= self.flush_points or due:
             self.flush()
 
     def flush(self) -> None:
@@ -218,7 +215,7 @@ class ResultStore:
         part = self.parts / f"part-{self._part_counter:06d}-{os.getpid()}.parquet"
         atomic_write_table(with_metadata(df, meta), part)
         self._part_counter += 1
-        self._buffer, self._buffer_states, self._buffered_units = [], {}, 0
+        self._buffer, self._buffer_states = [], {}
         self._last_flush = time.monotonic()
 
     def finalize(self) -> pd.DataFrame:
