@@ -5,7 +5,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: setup run test figures bench clean
+.PHONY: setup run test lint format figures bench wheel-check clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -16,16 +16,33 @@ $(STAMP): pyproject.toml
 setup: $(STAMP)  ## create .venv and install pendsweep with its test tools
 
 run: $(STAMP)  ## the main job: Fig. 11(a) sweep -> results/fig11a.parquet and results/figures/fig11a.png
-	$(BIN)/pendsweep run sweeps/fig11a.toml
+	$(BIN)/pendsweep run fig11a
 
-test: $(STAMP)  ## the test suite
+test: lint  ## lint, then the test suite
 	$(BIN)/python -m pytest -x -q
 
+lint: $(STAMP)  ## ruff lint and format check (configured in pyproject.toml)
+	$(BIN)/ruff check src tests
+	$(BIN)/ruff format --check src tests
+
+format: $(STAMP)  ## apply ruff's fixes and formatting
+	$(BIN)/ruff check --fix src tests
+	$(BIN)/ruff format src tests
+
 figures: $(STAMP)  ## regenerate every figure into results/figures/
-	$(BIN)/pendsweep figures --out results/figures
+	$(BIN)/pendsweep figures -o results/figures
 
 bench: $(STAMP)  ## benchmarks -> results/bench.json
 	$(BIN)/python -m pendsweep.bench -o results/bench.json
+
+wheel-check: $(STAMP)  ## build the wheel, install it in a fresh venv under /tmp, run it from an empty folder
+	rm -rf /tmp/pendsweep-wheel-check && mkdir -p /tmp/pendsweep-wheel-check/run
+	$(BIN)/python -m pip wheel --no-deps --quiet . -w /tmp/pendsweep-wheel-check/dist
+	$(PYTHON) -m venv /tmp/pendsweep-wheel-check/venv
+	/tmp/pendsweep-wheel-check/venv/bin/pip install --quiet /tmp/pendsweep-wheel-check/dist/*.whl
+	cd /tmp/pendsweep-wheel-check/run && ../venv/bin/pendsweep run fig11a --no-progress \
+	  && ../venv/bin/pendsweep figures fig8 && ../venv/bin/pendsweep hopf --what 1.1087 --method analytic \
+	  && ../venv/bin/pendsweep hopf --what 1.0 --method analytic,floquet
 
 clean:
 	rm -rf $(VENV) results/*.parquet results/*.parts results/figures results/bench.json

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -237,11 +238,24 @@ def write_record(record: Record, path: str | Path) -> list[Path]:
 
 
 FREE_SWING_DIR = Path("shared/data/measured/free-swing-rotary-pendulum")
+#: Environment variable naming the shared data folder (the one holding ``measured/``), for installed packages.
+DATA_ENV = "PENDSWEEP_DATA"
 
 
 def find_free_swing_data() -> Path | None:
-    """The shared real free-swing records: ``shared/...`` in an ancestor of this package, or None."""
-    for parent in Path(__file__).resolve().parents:
+    """The shared real free-swing records, or None.
+
+    Looked up in ``$PENDSWEEP_DATA/measured/free-swing-rotary-pendulum``, then
+    as ``shared/data/measured/...`` in the current folder or an ancestor of it
+    (a wheel install run from a checkout), then in an ancestor of this package
+    (a source checkout).
+    """
+    env = os.environ.get(DATA_ENV)
+    if env:
+        candidate = Path(env) / FREE_SWING_DIR.relative_to("shared/data")
+        return candidate if candidate.is_dir() else None
+    cwd = Path.cwd().resolve()
+    for parent in (cwd, *cwd.parents, *Path(__file__).resolve().parents):
         if (parent / FREE_SWING_DIR).is_dir():
             return parent / FREE_SWING_DIR
     return None

@@ -1,21 +1,39 @@
-"""Bifurcation diagrams in the style of Fig. 11."""
+"""Bifurcation diagrams in the style of Fig. 11, and the figure helper every module draws with.
+
+Figures are drawn on :class:`matplotlib.figure.Figure` objects with an
+explicit Agg canvas (:func:`new_figure`), never through pyplot's global
+state: importing pendsweep leaves matplotlib's backend alone, so notebooks
+and interactive sessions keep theirs.
+"""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
-import matplotlib
+import numpy as np
+import pandas as pd
+from matplotlib.axes import Axes
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from matplotlib.patches import Patch
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-from matplotlib.patches import Patch  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
+from .errors import ConfigError
+from .params import PARAM_SPECS
+from .results import read_results
 
-from .errors import ConfigError  # noqa: E402
-from .params import PARAM_SPECS  # noqa: E402
-from .results import read_results  # noqa: E402
+
+def new_figure(figsize: tuple[float, float], layout: str | None = "constrained") -> Figure:
+    """A figure of ``figsize`` inches on its own non-interactive Agg canvas (no pyplot, no backend switch).
+
+    ``fig.savefig`` writes PNG, PDF or SVG by the file's suffix; the figure is
+    garbage-collected like any object, nothing to close.
+    """
+    fig = Figure(figsize=figsize, layout=layout)
+    FigureCanvasAgg(fig)
+    return fig
+
 
 #: Plotted observables with their axis labels.
 OBSERVABLES = {
@@ -42,7 +60,7 @@ def branch_label(df: pd.DataFrame, meta: dict[str, Any]) -> pd.Series:
 
 
 def draw_bifurcation(
-    ax: plt.Axes,
+    ax: Axes,
     results: Sequence[tuple[pd.DataFrame, dict[str, Any]]],
     observable: str = "theta_peak",
 ) -> None:
@@ -91,7 +109,8 @@ def plot_files(paths: Sequence[Path], output: Path, observable: str = "theta_pea
     if output.suffix.lower() not in {".png", ".pdf", ".svg"}:
         raise ConfigError(f"plot file {str(output)!r} must end in .png, .pdf or .svg")
     results = [read_results(Path(p)) for p in paths]
-    fig, ax = plt.subplots(figsize=(7.5, 4.5), constrained_layout=True)
+    fig = new_figure((7.5, 4.5))
+    ax = fig.subplots()
     draw_bifurcation(ax, results, observable)
     if title is None:
         cfg = results[0][1]["config"]
@@ -102,7 +121,6 @@ def plot_files(paths: Sequence[Path], output: Path, observable: str = "theta_pea
     ax.set_title(title, fontsize=9)
     output.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(output, dpi=150)
-    plt.close(fig)
     return output
 
 
@@ -129,7 +147,7 @@ def point_motions(df: pd.DataFrame, branches: pd.Series, parameter: str) -> dict
     return out
 
 
-def draw_motion_bands(ax: plt.Axes, results, parameter: str) -> None:
+def draw_motion_bands(ax: Axes, results, parameter: str) -> None:
     """Shade the motion classes (``pendsweep.classify``) behind a bifurcation diagram.
 
     The first branch (continue up, else whatever comes first) shades the full
@@ -157,14 +175,24 @@ def draw_motion_bands(ax: plt.Axes, results, parameter: str) -> None:
             family = labels[start].split("-")[0] if labels[start].startswith("periodic") else labels[start]
             colour = MOTION_COLOURS.get(family, "white")
             lo, hi = edges[start], edges[k]
-            ax.fill_between([lo, hi], 0.01 + 0.03 * row, 0.035 + 0.03 * row, color=colour, transform=transform,
-                            linewidth=0)
+            ax.fill_between(
+                [lo, hi], 0.01 + 0.03 * row, 0.035 + 0.03 * row, color=colour, transform=transform, linewidth=0
+            )
             families.add(family)
             if row == 0:
                 ax.axvspan(lo, hi, color=colour, alpha=0.15, linewidth=0, zorder=0)
                 if hi - lo > 0.04 * span:  # name only the bands wide enough to read
-                    ax.text((lo + hi) / 2, 0.98, labels[start].replace("periodic-", "period-"), transform=transform,
-                            ha="center", va="top", fontsize=6, rotation=90, clip_on=True)
+                    ax.text(
+                        (lo + hi) / 2,
+                        0.98,
+                        labels[start].replace("periodic-", "period-"),
+                        transform=transform,
+                        ha="center",
+                        va="top",
+                        fontsize=6,
+                        rotation=90,
+                        clip_on=True,
+                    )
             start = k
         ax.text(edges[-1], 0.022 + 0.03 * row, f" {branch}", transform=transform, fontsize=6, va="center")
     handles = [Patch(color=MOTION_COLOURS[f], label=f) for f in MOTION_COLOURS if f in families]

@@ -2,14 +2,17 @@
 
 Each command group lives in its own private module and registers itself on
 :data:`main`; user-facing errors (:class:`pendsweep.errors.PendsweepError`)
-become a one-line message and exit status 2, never a traceback.
+become a one-line message, never a traceback: exit status 2 for bad input,
+1 for a failure while running (:class:`pendsweep.errors.RunFailure`).
 """
 
+from . import (
+    _data,  # noqa: F401,E402  (registers diagnose, fit-damping, synth)
+    _hopf,  # noqa: F401,E402  (registers the hopf command)
+    _stability,  # noqa: F401,E402  (registers margin)
+    _substructured,  # noqa: F401,E402  (registers trace and sync)
+    _sweep,  # noqa: F401,E402  (registers the sweep commands)
+)
 from ._app import main
-from . import _sweep  # noqa: F401,E402  (registers the sweep commands)
-from . import _hopf  # noqa: F401,E402  (registers the hopf command)
-from . import _substructured  # noqa: F401,E402  (registers trace and sync)
-from . import _stability  # noqa: F401,E402  (registers margin)
-from . import _data  # noqa: F401,E402  (registers diagnose, fit-damping, synth)
 
 __all__ = ["main"]

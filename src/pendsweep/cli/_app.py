@@ -1,10 +1,11 @@
-"""The click group shared by every pendsweep command."""
+"""The click group shared by every pendsweep command, and the value types of its options."""
 
 from __future__ import annotations
 
 import math
 
 import click
+from click.core import ParameterSource
 
 from .._version import __version__
 from ..errors import PendsweepError
@@ -16,12 +17,22 @@ class UsageFailure(click.ClickException):
     exit_code = 2
 
 
+class RuntimeFailure(click.ClickException):
+    """A clear one-line error with exit status 1 (the work itself failed)."""
+
+    exit_code = 1
+
+
 class _Group(click.Group):
     def invoke(self, ctx: click.Context):
         try:
             return super().invoke(ctx)
         except PendsweepError as exc:
-            raise UsageFailure(str(exc)) from None
+            cls = RuntimeFailure if exc.exit_code == 1 else UsageFailure
+            raise cls(str(exc)) from None
+        except OSError as exc:  # a disk filling up or a file vanishing mid-run: not the command line's fault
+            name = f" {str(exc.filename)!r}" if exc.filename else ""
+            raise RuntimeFailure(f"{exc.strerror or exc}{name}") from None
 
 
 @click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})
@@ -30,17 +41,29 @@ def main() -> None:
     """Bifurcation sweeps of the coupled pendulum-oscillator system.
 
     Units are SI throughout: forces in N, masses in kg, frequencies in Hz,
-    lengths in m, angles in rad, times in s.
+    lengths in m, angles in rad, times in s. Bad input exits with status 2
+    and a one-line message; a failure while running exits with status 1.
     """
 
 
 class FiniteFloat(click.ParamType):
-    """A float that must be finite (NaN and inf are rejected with exit 2)."""
+    """A finite float, optionally within ``[lo, hi]`` (NaN, inf and values outside exit 2).
+
+    Parameters
+    ----------
+    lo, hi : float
+        Inclusive bounds (default unbounded).
+    unit : str
+        Unit named in the error message, e.g. ``"rad"``.
+    """
 
     name = "float"
 
+    def __init__(self, lo: float = -math.inf, hi: float = math.inf, unit: str = "") -> None:
+        self.lo, self.hi, self.unit = lo, hi, unit
+
     def convert(self, value, param, ctx):
-        if isinstance(value, float) and math.isfinite(value):
+        if isinstance(value, float) and math.isfinite(value) and self.lo <= value <= self.hi:
             return value
         try:
             v = float(value)
@@ -48,7 +71,27 @@ class FiniteFloat(click.ParamType):
             self.fail(f"{value!r} is not a number", param, ctx)
         if not math.isfinite(v):
             self.fail(f"{value!r} is not finite; give a finite number", param, ctx)
+        if not self.lo <= v <= self.hi:
+            unit = f" {self.unit}" if self.unit else ""
+            self.fail(f"{value!r}{unit} is outside the accepted range [{self.lo:g}, {self.hi:g}]{unit}", param, ctx)
         return v
 
 
 FINITE = FiniteFloat()
+#: Initial angles: 5 turns either way (sin and cos of larger floats lose digits; angles wrap anyway).
+ANGLE = FiniteFloat(-10 * math.pi, 10 * math.pi, "rad")
+#: Initial angular rates: far above anything the pendulum reaches (omega_p ~ 7 rad/s).
+RATE = FiniteFloat(-1e3, 1e3, "rad/s")
+#: Kicks and thresholds on angles.
+SMALL_ANGLE = FiniteFloat(0.0, math.pi, "rad")
+#: Integration / controller steps: 1 microsecond to 10 ms (the paper's is 1 ms).
+STEP_S = FiniteFloat(1e-6, 1e-2, "s")
+#: Seeds of numpy's generators (non-negative, below 2**63).
+SEED = click.IntRange(0, 2**63 - 1)
+#: Forcing periods simulated per point.
+PERIODS = click.IntRange(0, 1_000_000)
+
+
+def given(ctx: click.Context, name: str) -> bool:
+    """True when option ``name`` was set on the command line or from the environment."""
+    return ctx.get_parameter_source(name) in (ParameterSource.COMMANDLINE, ParameterSource.ENVIRONMENT)

@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import click
 
 from ..errors import ConfigError
-from ._app import FINITE, main
+from ._app import ANGLE, FINITE, RATE, SEED, FiniteFloat, main
+from ._checks import check_input, check_output, check_output_dir
 
 
 def _pairs(items: tuple[str, ...], what: str) -> dict[str, float]:
@@ -18,21 +20,52 @@ def _pairs(items: tuple[str, ...], what: str) -> dict[str, float]:
         if not sep:
             raise ConfigError(f"{what} {item!r} must look like NAME=VALUE")
         try:
-            out[name.strip()] = float(value)
+            number = float(value)
         except ValueError:
             raise ConfigError(f"{what} {item!r}: {value!r} is not a number") from None
+        if not math.isfinite(number):
+            raise ConfigError(f"{what} {item!r}: {value!r} is not finite")
+        out[name.strip()] = number
     return out
 
 
 @main.command()
-@click.argument("data", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--json", "json_out", type=click.Path(dir_okay=False, path_type=Path), help="Write the verdict JSON here.")
-@click.option("--report", "report_dir", type=click.Path(file_okay=False, path_type=Path), help="Write report.md, figures and extended.json into this folder.")
-@click.option("--horizon", type=FINITE, default=None, help="Short-horizon segment length for forced and substructured records [s] (default 4).")
-@click.option("--train-fraction", type=FINITE, default=0.6, show_default=True, help="Leading fraction of the record used for fitting [-].")
+@click.argument("data", type=click.Path(path_type=Path))
+@click.option("--json", "json_out", type=click.Path(path_type=Path), help="Write the verdict JSON here (.json).")
+@click.option(
+    "--report",
+    "report_dir",
+    type=click.Path(path_type=Path),
+    help="Write report.md, figures and extended.json into this folder.",
+)
+@click.option(
+    "--horizon",
+    type=FiniteFloat(1e-3, 1e5, "s"),
+    default=None,
+    help="Short-horizon segment length for forced and substructured records [s] (default 4).",
+)
+@click.option(
+    "--train-fraction",
+    type=FiniteFloat(0.05, 1.0),
+    default=0.6,
+    show_default=True,
+    help="Leading fraction of the record used for fitting [-], 0.05 to 1.",
+)
 @click.option("--cause", "causes", multiple=True, help="Restrict the candidates to these causes (repeatable).")
-@click.option("--jobs", type=click.IntRange(1, 256), default=1, show_default=True, help="Candidates fitted in parallel (threads).")
-@click.option("--model", "model_file", type=click.Path(dir_okay=False, path_type=Path), help="JSON of ModelParams fields replacing the record's nominal model (e.g. from fit-damping --params-out).")
+@click.option(
+    "-j",
+    "--jobs",
+    type=click.IntRange(1, 256),
+    default=1,
+    show_default=True,
+    help="Candidates fitted in parallel (threads).",
+)
+@click.option(
+    "--model",
+    "model_file",
+    type=click.Path(path_type=Path),
+    help="JSON of ModelParams fields replacing the record's nominal model (e.g. from fit-damping --params-out).",
+)
 def diagnose(data, json_out, report_dir, horizon, train_fraction, causes, jobs, model_file):
     """Compare a measured record with its nominal model and name the missing effect.
 
@@ -40,9 +73,13 @@ def diagnose(data, json_out, report_dir, horizon, train_fraction, causes, jobs, 
     raw free-swing .txt file. Prints the verdict JSON.
     """
     from ..data import read_record
-    from ..diagnose import Replay, diagnose as run
+    from ..diagnose import Replay
+    from ..diagnose import diagnose as run
     from ..diagnose.report import write_report
 
+    check_input(data, "record")
+    check_output(json_out, "--json", (".json",))
+    check_output_dir(report_dir, "--report")
     record = read_record(data)
     if model_file is not None:
         from ._sweep import load_model_file
@@ -59,18 +96,68 @@ def diagnose(data, json_out, report_dir, horizon, train_fraction, causes, jobs, 
 
 
 @main.command()
-@click.argument("out", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--kind", type=click.Choice(["free_decay", "forced", "substructured"]), default="free_decay", show_default=True, help="Record kind.")
-@click.option("--effect", "effects", multiple=True, help="Hidden effect CAUSE=VALUE, VALUE in the parameter's unit (e.g. viscous_damping=2e-4 [kg m^2/s]); repeatable.")
-@click.option("--param", "params", multiple=True, help="Nominal model override NAME=VALUE in SI units (default Table IV; Fig. 9(a) forcing for forced and substructured records); repeatable.")
-@click.option("--duration", type=FINITE, default=20.0, show_default=True, help="Record length [s].")
-@click.option("--rate", type=FINITE, default=500.0, show_default=True, help="Sample rate [Hz].")
-@click.option("--seed", type=int, default=0, show_default=True, help="Seed of the sensor noise.")
-@click.option("--theta-init", type=FINITE, default=1.0, show_default=True, help="Initial pendulum angle [rad].")
-@click.option("--thetadot-init", type=FINITE, default=0.0, show_default=True, help="Initial pendulum velocity [rad/s].")
-@click.option("--transient", type=FINITE, default=30.0, show_default=True, help="Forced and substructured records: time simulated before recording [s].")
-@click.option("--tone2", type=(FINITE, FINITE), default=None, help="Forced and substructured records: a second force tone AMPLITUDE [N] FREQUENCY [Hz].")
-def synth(out, kind, effects, params, duration, rate, seed, theta_init, thetadot_init, transient, tone2):
+@click.argument("out", type=click.Path(path_type=Path))
+@click.option(
+    "--kind",
+    type=click.Choice(["free_decay", "forced", "substructured"]),
+    default="free_decay",
+    show_default=True,
+    help="Record kind.",
+)
+@click.option(
+    "--effect",
+    "effects",
+    multiple=True,
+    help="Hidden effect CAUSE=VALUE, VALUE in the parameter's unit (e.g. viscous_damping=2e-4 [kg m^2/s]); repeatable.",
+)
+@click.option(
+    "--set",
+    "params",
+    multiple=True,
+    metavar="NAME=VALUE",
+    help="Nominal model override in SI units (default Table IV; Fig. 9(a) forcing for forced and substructured records); repeatable.",
+)
+@click.option("--param", "params_old", multiple=True, hidden=True, deprecated="use --set")
+@click.option(
+    "--duration",
+    type=FiniteFloat(0.01, 1e5, "s"),
+    default=20.0,
+    show_default=True,
+    help="Record length [s], 0.01 to 1e5.",
+)
+@click.option(
+    "--rate", type=FiniteFloat(1.0, 1e6, "Hz"), default=500.0, show_default=True, help="Sample rate [Hz], 1 to 1e6."
+)
+@click.option("--seed", type=SEED, default=0, show_default=True, help="Seed of the sensor noise (0 to 2**63-1).")
+@click.option(
+    "--theta0", "theta_init", type=ANGLE, default=None, help="Initial pendulum angle [rad], within +-10 pi (default 1)."
+)
+@click.option(
+    "--thetadot0",
+    "thetadot_init",
+    type=RATE,
+    default=None,
+    help="Initial pendulum velocity [rad/s], within +-1000 (default 0).",
+)
+@click.option("--theta-init", "theta_init_old", type=ANGLE, default=None, hidden=True, deprecated="use --theta0")
+@click.option(
+    "--thetadot-init", "thetadot_init_old", type=RATE, default=None, hidden=True, deprecated="use --thetadot0"
+)
+@click.option(
+    "--transient",
+    type=FiniteFloat(0.0, 1e5, "s"),
+    default=30.0,
+    show_default=True,
+    help="Forced and substructured records: time simulated before recording [s].",
+)
+@click.option(
+    "--tone2",
+    type=(FINITE, FiniteFloat(1e-3, 1e3, "Hz")),
+    default=None,
+    help="Forced and substructured records: a second force tone AMPLITUDE [N] FREQUENCY [Hz].",
+)
+def synth(out, kind, effects, params, params_old, duration, rate, seed, theta_init, thetadot_init, theta_init_old,
+          thetadot_init_old, transient, tone2):  # fmt: skip
     """Write a seeded measured-like record (format v1) with hidden effects.
 
     OUT ends in .csv (a .json sidecar is written next to it) or .parquet.
@@ -78,23 +165,64 @@ def synth(out, kind, effects, params, duration, rate, seed, theta_init, thetadot
     from ..data import write_record
     from ..diagnose import synthesize
     from ..params import FIG9_PO, TABLE_IV
+    from ._checks import model_sets
 
+    check_output(out, "OUT", (".csv", ".parquet"))
+    if Path(out).suffix.lower() == ".csv":
+        check_output(Path(out).with_suffix(".json"), "OUT (its .json sidecar)")
+    theta_init = _one_of(theta_init, theta_init_old, "--theta0", "--theta-init", 1.0)
+    thetadot_init = _one_of(thetadot_init, thetadot_init_old, "--thetadot0", "--thetadot-init", 0.0)
     base = TABLE_IV if kind == "free_decay" else FIG9_PO
-    nominal = base.replace(**_pairs(params, "--param"))
+    nominal = base.replace(**model_sets(params + params_old))
     record = synthesize(
-        kind, nominal, _pairs(effects, "--effect"), duration, rate, seed, theta_init, thetadot_init, transient, tone2=tone2
+        kind,
+        nominal,
+        _pairs(effects, "--effect"),
+        duration,
+        rate,
+        seed,
+        theta_init,
+        thetadot_init,
+        transient,
+        tone2=tone2,
     )
     for f in write_record(record, out):
         click.echo(f"wrote {f}")
 
 
+def _one_of(new, old, new_name: str, old_name: str, default: float) -> float:
+    """The value of an option that also has a deprecated old spelling."""
+    if new is not None and old is not None:
+        raise ConfigError(f"give {new_name} once ({old_name} is its old name)")
+    return default if new is None and old is None else (new if new is not None else old)
+
+
 @main.command("fit-damping")
-@click.argument("data", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--json", "json_out", type=click.Path(dir_okay=False, path_type=Path), help="Write the results JSON here.")
-@click.option("--params-out", type=click.Path(dir_okay=False, path_type=Path), help="Write the fitted model as a ModelParams JSON (l = L, b_i = beta_i m L^2).")
-@click.option("--mass", type=FINITE, default=None, help="Pendulum mass m [kg] used to turn per-unit-inertia damping into b1-b3 for --params-out (default: the record's nominal m).")
-@click.option("--skip", type=click.IntRange(0, 10), default=1, show_default=True, help="Turning points skipped before the fit starts [-].")
-@click.option("--plot", type=click.Path(dir_okay=False, path_type=Path), help="Write a PNG of measured and simulated envelopes.")
+@click.argument("data", nargs=-1, required=True, type=click.Path(path_type=Path))
+@click.option("--json", "json_out", type=click.Path(path_type=Path), help="Write the results JSON here (.json).")
+@click.option(
+    "--params-out",
+    type=click.Path(path_type=Path),
+    help="Write the fitted model as a ModelParams JSON (l = L, b_i = beta_i m L^2).",
+)
+@click.option(
+    "--mass",
+    type=FiniteFloat(1e-6, 1e3, "kg"),
+    default=None,
+    help="Pendulum mass m [kg] used to turn per-unit-inertia damping into b1-b3 for --params-out (default: the record's nominal m).",
+)
+@click.option(
+    "--skip",
+    type=click.IntRange(0, 10),
+    default=1,
+    show_default=True,
+    help="Turning points skipped before the fit starts [-].",
+)
+@click.option(
+    "--plot",
+    type=click.Path(path_type=Path),
+    help="Write a figure of measured and simulated envelopes (.png/.pdf/.svg).",
+)
 def fit_damping(data, json_out, params_out, mass, skip, plot):
     """The paper's appendix procedure on free swings: fit on the first DATA, predict the others.
 
@@ -103,8 +231,15 @@ def fit_damping(data, json_out, params_out, mass, skip, plot):
     the fit and of each prediction (the paper reached <= 2 %).
     """
     from ..data import read_record
-    from ..diagnose.damping import fit_damping as run, predict
+    from ..diagnose.damping import fit_damping as run
+    from ..diagnose.damping import predict
+    from ._checks import FIGURE_SUFFIXES
 
+    for p in data:
+        check_input(p, "record")
+    check_output(json_out, "--json", (".json",))
+    check_output(params_out, "--params-out", (".json",))
+    check_output(plot, "--plot", FIGURE_SUFFIXES)
     records = [read_record(p) for p in data]
     fit = run(records[0], skip)
     preds = {str(p): predict(fit, r, skip) for p, r in zip(data[1:], records[1:])}
@@ -115,14 +250,18 @@ def fit_damping(data, json_out, params_out, mass, skip, plot):
         "offset_rad": fit.nuisance["theta0"],
         "stages": fit.stages,
         "envelope_error": fit.envelope_error,
-        "predictions": {p: {"envelope_error": v["envelope_error"], "offset_rad": v["nuisance"]["theta0"]} for p, v in preds.items()},
+        "predictions": {
+            p: {"envelope_error": v["envelope_error"], "offset_rad": v["nuisance"]["theta0"]} for p, v in preds.items()
+        },
     }
     click.echo(f"fitted on {data[0]} ({fit.iterations} sensitivity iterations)")
     units = {"beta1": "1/s^2", "beta2": "1/s", "beta3": "-", "L": "m"}
     for stage, vals in fit.stages.items():
         click.echo(f"  {stage:32s} " + "  ".join(f"{k}={v:.4g}" for k, v in vals.items()))
-    click.echo("  final (sensitivity updating)    " + "  ".join(
-        f"{k}={v:.4g}±{fit.stderr[k]:.2g} {units[k]}" for k, v in fit.physics.items()))
+    click.echo(
+        "  final (sensitivity updating)    "
+        + "  ".join(f"{k}={v:.4g}±{fit.stderr[k]:.2g} {units[k]}" for k, v in fit.physics.items())
+    )
     click.echo(f"  max envelope error {100 * fit.envelope_error:.2f} %  (paper: <= 2 %)")
     for p, v in preds.items():
         click.echo(f"predicted {p}: max envelope error {100 * v['envelope_error']:.2f} %")
@@ -138,5 +277,8 @@ def fit_damping(data, json_out, params_out, mass, skip, plot):
     if plot:
         from ..diagnose.report import plot_envelopes
 
-        plot_envelopes({str(data[0]) + " (fit)": (fit.measured, fit.simulated)} | {
-            p: (v["measured"], v["simulated"]) for p, v in preds.items()}, plot)
+        plot_envelopes(
+            {str(data[0]) + " (fit)": (fit.measured, fit.simulated)}
+            | {p: (v["measured"], v["simulated"]) for p, v in preds.items()},
+            plot,
+        )

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import sys
 from pathlib import Path
 
@@ -9,21 +10,27 @@ import click
 
 from ..backends import BACKENDS
 from ..errors import ConfigError
-from ..executors import make_executor
-from ..hopf import METHODS, HopfConfig, run_hopf
-from ..sweep import value_range
-from ._app import FINITE, main
+from ..hopf import METHODS
+from ..sweepfile import MAX_POINTS
+from ._app import FiniteFloat, main
+from ._checks import check_output, key_values, model_sets
 from ._executor import apply_options, executor_options
-from ._sweep import _finite, _key_value
+from ._sweep import replace_other_configuration
+
+#: Model parameters the scan itself sets: alpha is searched, fe follows --what, M is --M.
+SCANNED = {"alpha": "the searched amplitude", "fe": "set by --what (fe = omega_hat w_p / pi)", "M": "set by --M"}
+DEFAULT_OUTPUT = Path("results/hopf.parquet")
 
 
 def parse_values(text: str, what: str) -> tuple[float, ...]:
     """``FROM:TO:N`` (N points, ends included), ``A,B,C`` or a single value."""
+    from ..sweep import value_range
+
     try:
         if ":" in text:
             start, stop, count = text.split(":")
-            if int(count) != float(count):
-                raise ValueError
+            if not 1 <= int(count) <= MAX_POINTS:
+                raise ConfigError(f"{what} = {text!r}: N = {count} must be between 1 and {MAX_POINTS}")
             return tuple(float(v) for v in value_range(float(start), float(stop), points=int(count)))
         return tuple(float(v) for v in text.split(","))
     except ValueError:
@@ -33,32 +40,110 @@ def parse_values(text: str, what: str) -> tuple[float, ...]:
 
 
 @main.command()
-@click.option("--what", "what", required=True, metavar="RANGE",
-              help="omega_hat = w_e/(2 w_p) [-]: FROM:TO:N (N points), A,B,C, or one value (e.g. 1.1087 is fe = 2.5 Hz).")
-@click.option("--M", "masses", default="10.9", show_default=True, metavar="LIST",
-              help="Oscillator masses M [kg], comma separated.")
-@click.option("--method", "methods", default=",".join(METHODS), show_default=True, metavar="LIST",
-              help="Methods, comma separated: analytic (Eq. 12), floquet (Mathieu monodromy), simulate (kick + bisection).")
-@click.option("--backend", type=click.Choice(sorted(BACKENDS)), default="emulated", show_default=True,
-              help="Backend of the simulate method.")
-@click.option("-B", "--backend-option", "backend_options", multiple=True, metavar="KEY=VALUE",
-              help="Backend option (repeatable), e.g. dt=0.001 [s].")
-@click.option("--set", "model", multiple=True, metavar="NAME=VALUE",
-              help="Model parameter override in SI units (repeatable), e.g. --set b1=0 --set C=20.")
-@click.option("--kick", type=FINITE, default=0.01, show_default=True, help="Simulate: pendulum kick [rad].")
-@click.option("--periods", type=click.IntRange(min=2), default=200, show_default=True,
-              help="Simulate: forcing periods recorded after the kick [-].")
-@click.option("--tol", type=FINITE, default=0.1, show_default=True, help="Simulate: bisection bracket width [N].")
-@click.option("--alpha-max", type=FINITE, default=500.0, show_default=True,
-              help="Largest forcing amplitude searched [N].")
-@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
-              default=Path("results/hopf.parquet"), show_default=True, help="Results parquet file (resumable).")
+@click.option(
+    "--what",
+    "what",
+    required=True,
+    metavar="RANGE",
+    help="omega_hat = w_e/(2 w_p) [-]: FROM:TO:N (N points), A,B,C, or one value (e.g. 1.1087 is fe = 2.5 Hz).",
+)
+@click.option(
+    "--M",
+    "masses",
+    default="10.9",
+    show_default=True,
+    metavar="LIST",
+    help="Oscillator masses M [kg], comma separated.",
+)
+@click.option(
+    "--method",
+    "methods",
+    default=",".join(METHODS),
+    show_default=True,
+    metavar="LIST",
+    help="Methods, comma separated: analytic (Eq. 12), floquet (Mathieu monodromy), simulate (kick + bisection).",
+)
+@click.option(
+    "--backend",
+    type=click.Choice(sorted(BACKENDS)),
+    default="emulated",
+    show_default=True,
+    help="Backend of the simulate method.",
+)
+@click.option(
+    "-B",
+    "--backend-option",
+    "backend_options",
+    multiple=True,
+    metavar="KEY=VALUE",
+    help="Backend option (repeatable), e.g. dt=0.001 [s].",
+)
+@click.option(
+    "--set",
+    "model",
+    multiple=True,
+    metavar="NAME=VALUE",
+    help="Model parameter override in SI units (repeatable), e.g. --set b1=0 --set C=20.",
+)
+@click.option(
+    "--kick",
+    type=FiniteFloat(1e-9, math.pi, "rad"),
+    default=0.01,
+    show_default=True,
+    help="Simulate: pendulum kick [rad], 1e-9 to pi.",
+)
+@click.option(
+    "--periods",
+    type=click.IntRange(2, 1_000_000),
+    default=200,
+    show_default=True,
+    help="Simulate: forcing periods recorded after the kick [-].",
+)
+@click.option(
+    "--tol",
+    type=FiniteFloat(1e-9, 1e6, "N"),
+    default=0.1,
+    show_default=True,
+    help="Simulate: bisection bracket width [N], 1e-9 to 1e6.",
+)
+@click.option(
+    "--alpha-max",
+    type=FiniteFloat(1e-9, 1e9, "N"),
+    default=500.0,
+    show_default=True,
+    help="Largest forcing amplitude searched [N].",
+)
+@click.option(
+    "-o",
+    "--output",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="Results file, .parquet (resumable; default results/hopf.parquet, replaced when it holds another scan).",
+)
 @click.option("-j", "--jobs", type=int, default=-1, show_default=True, help="Parallel workers (-1: all cores).")
 @click.option("--overwrite", is_flag=True, help="Discard earlier results at --output instead of resuming.")
-@click.option("--progress/--no-progress", default=None, help="Progress bar on stderr (default: when stderr is a terminal).")
+@click.option(
+    "--progress/--no-progress", default=None, help="Progress bar on stderr (default: when stderr is a terminal)."
+)
 @apply_options(executor_options())
-def hopf(what, masses, methods, backend, backend_options, model, kick, periods, tol, alpha_max,
-         output, jobs, overwrite, progress, executor, scheduler):
+def hopf(
+    what,
+    masses,
+    methods,
+    backend,
+    backend_options,
+    model,
+    kick,
+    periods,
+    tol,
+    alpha_max,
+    output,
+    jobs,
+    overwrite,
+    progress,
+    executor,
+    scheduler,
+):
     """Hopf boundary alpha_H [N] of the semi-trivial solution (Fig. 10).
 
     Writes one row per (omega_hat, M, method) with alpha_H and diagnostics
@@ -66,15 +151,26 @@ def hopf(what, masses, methods, backend, backend_options, model, kick, periods, 
     final bisection bracket, kick [rad], runs) and prints the table.
     Rerunning the same command resumes an interrupted scan.
     """
+    from ..executors import make_executor
+    from ..hopf import HopfConfig, hopf_metadata, run_hopf
+
+    check_output(output, "-o/--output", (".parquet",))
+    fixed = model_sets(model)
+    for name, why in SCANNED.items():
+        if name in fixed:
+            raise ConfigError(f"--set {name}={fixed[name]:g} is ignored by a Hopf scan ({name} is {why}); drop it")
     config = HopfConfig(
         omega_hat=parse_values(what, "--what"),
         masses=parse_values(masses, "--M"),
         methods=tuple(m.strip() for m in methods.split(",") if m.strip()),
-        model={k: _finite(k, v) for k, v in _key_value(model, "--set").items()},
+        model=fixed,
         backend=backend,
-        backend_options=_key_value(backend_options, "--backend-option"),
+        backend_options=key_values(backend_options, "--backend-option"),
         kick=kick, periods=periods, tol=tol, alpha_max=alpha_max,
-    )
+    )  # fmt: skip
+    if output is None:
+        output = DEFAULT_OUTPUT
+        overwrite = overwrite or replace_other_configuration(output, hopf_metadata(config)["config_hash"])
     progress = sys.stderr.isatty() if progress is None else progress
     runner = make_executor(executor, scheduler)
     try:
@@ -84,4 +180,3 @@ def hopf(what, masses, methods, backend, backend_options, model, kick, periods, 
     shown = ["omega_hat", "fe", "M", "method", "alpha_H", "status", "multiplier", "growth_above", "kick", "runs"]
     click.echo(df[shown].to_string(index=False, float_format=lambda v: f"{v:.5g}"))
     click.echo(f"wrote {output}", err=True)
-

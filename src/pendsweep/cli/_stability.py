@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 from pathlib import Path
 
 import click
@@ -17,7 +18,8 @@ from ..stability import (
     sampled_delay_margin,
     spectral_abscissa,
 )
-from ._app import FINITE, UsageFailure, main
+from ._app import STEP_S, FiniteFloat, UsageFailure, main
+from ._checks import FIGURE_SUFFIXES, check_output
 
 _RIG = LoopParams.from_model(TABLE_IV)
 
@@ -30,36 +32,132 @@ def _pair(text: str | None, name: str, cast) -> tuple | None:
         if len(parts) != 2:
             raise ValueError
         a, b = (cast(p.strip()) for p in parts)
+        if not (math.isfinite(a) and math.isfinite(b)):
+            raise ValueError
     except ValueError:
         raise UsageFailure(f"{name} {text!r} must be two comma-separated numbers, e.g. {name} 1,5") from None
     return a, b
 
 
 @main.command("margin")
-@click.option("--M1", "M1", type=FINITE, default=_RIG.M1, show_default=True, help="Numerical-model mass M1 [kg].")
-@click.option("--C1", "C1", type=FINITE, default=_RIG.C1, show_default=True, help="Numerical-model damping C1 [kg/s].")
-@click.option("--K", "K", type=FINITE, default=_RIG.K, show_default=True, help="Numerical-model stiffness K [N/m].")
-@click.option("--ms", "ms", type=FINITE, default=_RIG.ms, show_default=True, help="Mass carried by the actuator, m_s = M2 + m [kg].")
-@click.option("--C2", "C2", type=FINITE, default=_RIG.C2, show_default=True, help="Platform damping C2 [kg/s].")
-@click.option("--actuator", type=click.Choice(["servo", "delay"]), default="servo", show_default=True,
-              help="Transfer system of the backend-loop section: servo lag after the delay, or pure (interpolated) delay.")
-@click.option("--dt", type=FINITE, default=1e-3, show_default=True, help="Controller step of the backend loop [s].")
-@click.option("--servo-bandwidth", type=FINITE, default=30.0, show_default=True, help="Servo natural frequency [Hz].")
-@click.option("--servo-damping", type=FINITE, default=0.7, show_default=True, help="Servo damping ratio [-].")
-@click.option("--predictor", default=None, metavar="n,N",
-              help="Polynomial forward prediction: order n (0-4) fitted to N points (e.g. 1,5, the paper's).")
-@click.option("--tau-hat", default=None, metavar="SECONDS|matched",
-              help="Prediction horizon [s]; 'matched' sets it equal to the transport delay (default 0.018, the paper's).")
-@click.option("--filter-band", default=None, metavar="LOW,HIGH",
-              help="Butterworth band-pass on the measured force, edges [Hz] (default: no filter).")
-@click.option("--filter-order", type=click.IntRange(1, 8), default=1, show_default=True, help="Butterworth order of the force filter.")
-@click.option("--filter-frequency", type=FINITE, default=2.5, show_default=True,
-              help="Frequency [Hz] where the filter's phase lag sets the force-prediction horizon (the forcing frequency).")
-@click.option("--tau-max", type=FINITE, default=0.5, show_default=True, help="Largest transport delay scanned for the backend loop [s].")
-@click.option("--roots-at", "roots_at", type=FINITE, default=None, metavar="TAU",
-              help="Also list the rightmost exact roots [1/s] and the spectral abscissa at this delay [s].")
+@click.option(
+    "--M1",
+    "M1",
+    type=FiniteFloat(1e-6, 1e6, "kg"),
+    default=_RIG.M1,
+    show_default=True,
+    help="Numerical-model mass M1 [kg].",
+)
+@click.option(
+    "--C1",
+    "C1",
+    type=FiniteFloat(0.0, 1e6, "kg/s"),
+    default=_RIG.C1,
+    show_default=True,
+    help="Numerical-model damping C1 [kg/s].",
+)
+@click.option(
+    "--K",
+    "K",
+    type=FiniteFloat(1e-6, 1e9, "N/m"),
+    default=_RIG.K,
+    show_default=True,
+    help="Numerical-model stiffness K [N/m].",
+)
+@click.option(
+    "--ms",
+    "ms",
+    type=FiniteFloat(1e-6, 1e6, "kg"),
+    default=_RIG.ms,
+    show_default=True,
+    help="Mass carried by the actuator, m_s = M2 + m [kg].",
+)
+@click.option(
+    "--C2",
+    "C2",
+    type=FiniteFloat(0.0, 1e6, "kg/s"),
+    default=_RIG.C2,
+    show_default=True,
+    help="Platform damping C2 [kg/s].",
+)
+@click.option(
+    "--actuator",
+    type=click.Choice(["servo", "delay"]),
+    default="servo",
+    show_default=True,
+    help="Transfer system of the backend-loop section: servo lag after the delay, or pure (interpolated) delay.",
+)
+@click.option(
+    "--dt", type=STEP_S, default=1e-3, show_default=True, help="Controller step of the backend loop [s], 1e-6 to 0.01."
+)
+@click.option(
+    "--servo-bandwidth",
+    type=FiniteFloat(0.1, 1e4, "Hz"),
+    default=30.0,
+    show_default=True,
+    help="Servo natural frequency [Hz], 0.1 to 1e4.",
+)
+@click.option(
+    "--servo-damping",
+    type=FiniteFloat(0.01, 100.0),
+    default=0.7,
+    show_default=True,
+    help="Servo damping ratio [-], 0.01 to 100.",
+)
+@click.option(
+    "--predictor",
+    default=None,
+    metavar="n,N",
+    help="Polynomial forward prediction: order n (0-4) fitted to N points (e.g. 1,5, the paper's).",
+)
+@click.option(
+    "--tau-hat",
+    default=None,
+    metavar="SECONDS|matched",
+    help="Prediction horizon [s]; 'matched' sets it equal to the transport delay (default 0.018, the paper's).",
+)
+@click.option(
+    "--filter-band",
+    default=None,
+    metavar="LOW,HIGH",
+    help="Butterworth band-pass on the measured force, edges [Hz] (default: no filter).",
+)
+@click.option(
+    "--filter-order",
+    type=click.IntRange(1, 8),
+    default=1,
+    show_default=True,
+    help="Butterworth order of the force filter.",
+)
+@click.option(
+    "--filter-frequency",
+    type=FiniteFloat(1e-3, 1e4, "Hz"),
+    default=2.5,
+    show_default=True,
+    help="Frequency [Hz] where the filter's phase lag sets the force-prediction horizon (the forcing frequency).",
+)
+@click.option(
+    "--tau-max",
+    type=FiniteFloat(1e-6, 5.0, "s"),
+    default=0.5,
+    show_default=True,
+    help="Largest transport delay scanned for the backend loop [s], up to 5.",
+)
+@click.option(
+    "--roots-at",
+    "roots_at",
+    type=FiniteFloat(0.0, 10.0, "s"),
+    default=None,
+    metavar="TAU",
+    help="Also list the rightmost exact roots [1/s] and the spectral abscissa at this delay [s].",
+)
 @click.option("--table2", is_flag=True, help="Print Table II (ours next to the paper's two rows) and stop.")
-@click.option("--plot", type=click.Path(dir_okay=False, path_type=Path), default=None, help="Write a Bode diagram with the margins (PNG).")
+@click.option(
+    "--plot",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="Write a Bode diagram with the margins (.png/.pdf/.svg).",
+)
 def margin(M1, C1, K, ms, C2, actuator, dt, servo_bandwidth, servo_damping, predictor, tau_hat, filter_band,
            filter_order, filter_frequency, tau_max, roots_at, table2, plot) -> None:  # fmt: skip
     """Phase margins, stability-switch delays and the critical delay tau*.
@@ -71,6 +169,7 @@ def margin(M1, C1, K, ms, C2, actuator, dt, servo_bandwidth, servo_damping, pred
     runs it (sampled at dt, servo or delay actuator, optional predictor and
     force filter): the critical transport delay without and with compensation.
     """
+    check_output(plot, "--plot", FIGURE_SUFFIXES)
     if table2:
         click.echo(format_table_ii())
         return
@@ -89,6 +188,8 @@ def margin(M1, C1, K, ms, C2, actuator, dt, servo_bandwidth, servo_damping, pred
             horizon = float(tau_hat)
         except ValueError:
             raise UsageFailure(f"--tau-hat {tau_hat!r} must be a delay in seconds or 'matched'") from None
+        if not 0.0 <= horizon <= 1.0:
+            raise UsageFailure(f"--tau-hat {tau_hat!r} s is outside the accepted range [0, 1] s (or 'matched')")
     base = SampledLoop(dt=dt, actuator=actuator, servo_bandwidth=servo_bandwidth, servo_damping=servo_damping,
                        filter_band=band, filter_order=filter_order, filter_frequency=filter_frequency)  # fmt: skip
     comp = None
@@ -117,7 +218,11 @@ def margin(M1, C1, K, ms, C2, actuator, dt, servo_bandwidth, servo_damping, pred
         click.echo(f"rightmost roots at tau = {roots_at:g} s (conjugates implied): {listed}")
         click.echo(f"spectral abscissa at tau = {roots_at:g} s: {spectral_abscissa(loop, roots_at):+.6g} 1/s")
 
-    what = "servo %g Hz, zeta %g" % (servo_bandwidth, servo_damping) if actuator == "servo" else "pure delay, Hermite command"
+    what = (
+        f"servo {servo_bandwidth:g} Hz, zeta {servo_damping:g}"
+        if actuator == "servo"
+        else "pure delay, Hermite command"
+    )
     click.echo(f"\nsubstructured backend loop (sampled at dt = {dt:g} s, {what}; tau = transport delay):")
     rows = [("no compensation", base)] + ([(_describe(comp), comp)] if comp else [])
     for label, cfg in rows:
@@ -138,5 +243,3 @@ def margin(M1, C1, K, ms, C2, actuator, dt, servo_bandwidth, servo_damping, pred
 def _describe(cfg: SampledLoop) -> str:
     horizon = "tau_hat = tau" if cfg.tau_hat is None else f"tau_hat = {cfg.tau_hat:g} s"
     return f"predictor n = {cfg.predictor_order}, N = {cfg.predictor_points}, {horizon}"
-
-

@@ -11,42 +11,94 @@ from ..errors import ConfigError
 from ..hybrid import read_trace, run_trace, write_trace
 from ..params import ModelParams
 from ..sync import TABLE_I, analyse
-from ._app import FINITE, main
-from ._sweep import _finite, _key_value
+from ._app import ANGLE, FINITE, RATE, FiniteFloat, main
+from ._checks import FIGURE_SUFFIXES, check_input, check_output, key_values, model_sets
 
 
 def _model(alpha, fe, M, C, sets) -> ModelParams:
-    changes = {k: _finite(k, v) for k, v in _key_value(sets, "--set").items()}
+    changes = model_sets(sets)
     for key, value in (("alpha", alpha), ("fe", fe), ("M", M), ("C", C)):
         if value is not None:
+            if key in changes:
+                raise ConfigError(f"--{key} {value:g} and --set {key}={changes[key]:g} both fix {key}; give one")
             changes[key] = value
-    return ModelParams.from_mapping(changes)
+    return ModelParams.from_mapping({"alpha": 5.0, "fe": 2.2} | changes)  # Fig. 9(a) PO unless told
 
 
 @main.command("trace")
-@click.argument("output", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--alpha", type=FINITE, default=5.0, show_default=True, help="Forcing amplitude [N] (Fig. 9 PO: 5).")
-@click.option("--fe", type=FINITE, default=2.2, show_default=True, help="Forcing frequency [Hz].")
+@click.argument("output", type=click.Path(path_type=Path))
+@click.option("--alpha", type=FINITE, default=None, help="Forcing amplitude [N] (default 5, Fig. 9 PO).")
+@click.option("--fe", type=FINITE, default=None, help="Forcing frequency [Hz] (default 2.2).")
 @click.option("--M", "M_", type=FINITE, default=None, help="Oscillator mass M = M1 + M2 [kg] (default 10.9).")
 @click.option("--C", "C_", type=FINITE, default=None, help="Oscillator damping C = C1 + C2 [kg/s] (default 20).")
-@click.option("--set", "sets", multiple=True, metavar="NAME=VALUE", help="Any other model parameter, SI units (e.g. --set M1=10 --set M2=0.9).")
-@click.option("--backend", type=click.Choice(sorted(BACKENDS)), default="substructured", show_default=True, help="Simulation backend.")
-@click.option("-B", "--backend-option", "backend_opts", multiple=True, metavar="KEY=VALUE", help="Backend option, e.g. -B transport_delay=0.02 -B predictor_order=-1 (see docs/substructured.md).")
-@click.option("--periods", type=click.IntRange(1, 100000), default=22, show_default=True, help="Forcing periods written (22 periods at 2.2 Hz = 10 s).")
-@click.option("--transient-periods", type=click.IntRange(0, 100000), default=100, show_default=True, help="Forcing periods run first and discarded.")
-@click.option("--stride", type=click.IntRange(1, 100000), default=1, show_default=True, help="Write every stride-th controller step.")
-@click.option("--y0", type=FINITE, default=0.0, show_default=True, help="Initial displacement [m].")
-@click.option("--theta0", type=FINITE, default=0.1, show_default=True, help="Initial pendulum angle [rad].")
-@click.option("--thetadot0", type=FINITE, default=0.0, show_default=True, help="Initial pendulum rate [rad/s].")
-def trace_command(output, alpha, fe, M_, C_, sets, backend, backend_opts, periods, transient_periods, stride, y0, theta0, thetadot0):
+@click.option(
+    "--set",
+    "sets",
+    multiple=True,
+    metavar="NAME=VALUE",
+    help="Any other model parameter, SI units (e.g. --set M1=10 --set M2=0.9).",
+)
+@click.option(
+    "--backend",
+    type=click.Choice(sorted(BACKENDS)),
+    default="substructured",
+    show_default=True,
+    help="Simulation backend.",
+)
+@click.option(
+    "-B",
+    "--backend-option",
+    "backend_opts",
+    multiple=True,
+    metavar="KEY=VALUE",
+    help="Backend option, e.g. -B transport_delay=0.02 -B predictor_order=-1 (see docs/substructured.md).",
+)
+@click.option(
+    "--periods",
+    type=click.IntRange(1, 100000),
+    default=22,
+    show_default=True,
+    help="Forcing periods written (22 periods at 2.2 Hz = 10 s).",
+)
+@click.option(
+    "--transient-periods",
+    type=click.IntRange(0, 100000),
+    default=100,
+    show_default=True,
+    help="Forcing periods run first and discarded.",
+)
+@click.option(
+    "--stride",
+    type=click.IntRange(1, 100000),
+    default=1,
+    show_default=True,
+    help="Write every stride-th controller step.",
+)
+@click.option(
+    "--y0",
+    type=FiniteFloat(-10.0, 10.0, "m"),
+    default=0.0,
+    show_default=True,
+    help="Initial displacement [m], within +-10.",
+)
+@click.option(
+    "--theta0", type=ANGLE, default=0.1, show_default=True, help="Initial pendulum angle [rad], within +-10 pi."
+)
+@click.option(
+    "--thetadot0", type=RATE, default=0.0, show_default=True, help="Initial pendulum rate [rad/s], within +-1000."
+)
+def trace_command(
+    output, alpha, fe, M_, C_, sets, backend, backend_opts, periods, transient_periods, stride, y0, theta0, thetadot0
+):
     """Write a time series of one hybrid run to OUTPUT (parquet).
 
     Substructured columns (SI): t, Fe, y (= y*), ydot, command, x, xdot, x_meas,
     theta (encoder, theta_x), theta_true, thetadot, Fs (load cell), Fs_true,
     F_fb (force fed to the model), sync_error (y* - x_meas).
     """
+    check_output(output, "OUTPUT", (".parquet",))
     params = _model(alpha, fe, M_, C_, sets)
-    b = make_backend(backend, **_key_value(backend_opts, "--backend-option"))
+    b = make_backend(backend, **key_values(backend_opts, "--backend-option"))
     df = run_trace(b, params, (y0, 0.0, theta0, thetadot0), transient_periods, periods, stride)
     status = df.attrs.get("status", "ok")
     meta = {"params": params.to_dict(), "backend": backend, "backend_options": b.options(),
@@ -66,10 +118,24 @@ def trace_command(output, alpha, fe, M_, C_, sets, backend, backend_opts, period
 
 
 @main.command("sync")
-@click.argument("trace", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), default=None, help="Figure file (default: TRACE with .png).")
-@click.option("--reference", type=click.Choice(sorted(TABLE_I)), default=None, help="Also print the paper's Table I row.")
-@click.option("--window", type=click.FloatRange(0.01, 1e4), default=1.0, show_default=True, help="Sliding window of the online delay estimate [s].")
+@click.argument("trace", type=click.Path(path_type=Path))
+@click.option(
+    "-o",
+    "--output",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="Figure file, .png/.pdf/.svg (default: TRACE with .png).",
+)
+@click.option(
+    "--reference", type=click.Choice(sorted(TABLE_I)), default=None, help="Also print the paper's Table I row."
+)
+@click.option(
+    "--window",
+    type=click.FloatRange(0.01, 1e4),
+    default=1.0,
+    show_default=True,
+    help="Sliding window of the online delay estimate [s].",
+)
 def sync_command(trace, output, reference, window):
     """Synchronisation accuracy of a substructured TRACE (Table I, J1-J3, Fig. 12 panels).
 
@@ -78,13 +144,20 @@ def sync_command(trace, output, reference, window):
     """
     from ..figures.hybrid import draw_sync
 
-    df, meta = read_trace(trace)
+    check_input(trace, "trace")
+    path = check_output(output or Path(trace).with_suffix(".png"), "-o/--output", FIGURE_SUFFIXES)
+    check_output(path.with_name(path.stem + "_delay.csv"), "-o/--output (its _delay.csv)")
+    try:
+        df, meta = read_trace(trace)
+    except ValueError as exc:  # metadata that is not JSON
+        raise ConfigError(f"TRACE {str(trace)!r}: its pendsweep metadata is not valid JSON ({exc})") from None
     if meta.get("backend") != "substructured":
-        raise ConfigError(f"{str(trace)!r} was written by backend {meta.get('backend')!r}; sync needs a substructured trace")
+        raise ConfigError(
+            f"{str(trace)!r} was written by backend {meta.get('backend')!r}; sync needs a substructured trace"
+        )
     report = analyse(df, window)
     for line in report.lines(reference):
         click.echo(line)
-    path = output or Path(trace).with_suffix(".png")
     draw_sync(df, report, path)
     delay_csv = path.with_name(path.stem + "_delay.csv")
     report.delay_online.to_csv(delay_csv, index=False)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import sys
 import time
 from pathlib import Path
@@ -11,36 +12,45 @@ from typing import Any
 import click
 
 from ..backends import BACKENDS
-from ..errors import ConfigError, ParameterError
+from ..errors import ConfigError, ParameterError, PendsweepError
 from ..params import PARAM_SPECS, ModelParams
-from ..sweep import DIRECTIONS, MODES, SweepConfig, run_sweep, value_range
-from ._app import FINITE, main
+from ..sweep import DIRECTIONS, MODES
+from ..sweepfile import MAX_POINTS, grid_size
+from ._app import ANGLE, FINITE, PERIODS, RATE, SEED, SMALL_ANGLE, STEP_S, given, main
+from ._checks import FIGURE_SUFFIXES, check_input, check_output, check_output_dir, key_values, model_sets
 from ._executor import apply_options, executor_options
-
-
-def _key_value(pairs: tuple[str, ...], what: str) -> dict[str, str]:
-    out = {}
-    for pair in pairs:
-        if "=" not in pair:
-            raise ConfigError(f"{what} {pair!r} must look like NAME=VALUE")
-        k, v = pair.split("=", 1)
-        out[k.strip()] = v.strip()
-    return out
 
 
 def load_model_file(path: Path) -> dict[str, float]:
     """A JSON object of ModelParams fields (e.g. written by ``pendsweep diagnose``)."""
+    name = str(path)
+    check_input(path, "model file")
     try:
-        data = json.loads(Path(path).read_text())
-    except FileNotFoundError:
-        raise ConfigError(f"no model file at {str(path)!r}") from None
+        data = json.loads(Path(path).read_bytes().decode("utf-8"))
+    except UnicodeDecodeError:
+        raise ConfigError(f"model file {name!r} is not a text (UTF-8) JSON file") from None
     except json.JSONDecodeError as exc:
-        raise ConfigError(f"model file {str(path)!r} is not valid JSON: {exc}") from None
-    if not isinstance(data, dict):
-        raise ConfigError(f"model file {str(path)!r} must hold a JSON object of parameter values")
-    params = data.get("params", data)
+        raise ConfigError(f"model file {name!r} is not valid JSON: {exc}") from None
+    params = data.get("params", data) if isinstance(data, dict) else data
+    if not isinstance(params, dict):
+        raise ConfigError(
+            f"model file {name!r} must hold a JSON object of parameter values, not {type(params).__name__}"
+        )
+    for key, value in params.items():
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise ConfigError(f"model file {name!r}: {key} = {value!r} must be a finite number")
     ModelParams.from_mapping(params)  # validates names and ranges
     return {k: float(v) for k, v in params.items()}
+
+
+#: The options that fix one model parameter, as (parameter, option, click name).
+FIXED_OPTIONS = (
+    ("alpha", "--alpha", "alpha"),
+    ("fe", "--fe", "fe"),
+    ("M", "--M", "M_"),
+    ("C", "--C", "C_"),
+    ("K", "--K", "K_"),
+)
 
 
 def sweep_options(default_step: float, unit: str):
@@ -49,35 +59,160 @@ def sweep_options(default_step: float, unit: str):
     def deco(fn):
         options = [
             click.option("--from", "start", type=FINITE, required=True, help=f"First value [{unit}]."),
-            click.option("--to", "stop", type=FINITE, required=True, help=f"Last value [{unit}], included when on the grid."),
-            click.option("--step", type=FINITE, default=None, help=f"Increment [{unit}] (default {default_step:g}; sign must match from -> to)."),
-            click.option("--points", type=int, default=None, help="Number of values instead of --step (inclusive linspace)."),
+            click.option(
+                "--to", "stop", type=FINITE, required=True, help=f"Last value [{unit}], included when on the grid."
+            ),
+            click.option(
+                "--step",
+                type=FINITE,
+                default=None,
+                help=f"Increment [{unit}] (default {default_step:g}; sign must match from -> to; at most {MAX_POINTS} values).",
+            ),
+            click.option(
+                "--points",
+                type=click.IntRange(1, MAX_POINTS),
+                default=None,
+                help="Number of values instead of --step (inclusive linspace).",
+            ),
             click.option("--alpha", type=FINITE, default=None, help="Forcing amplitude [N] (default 17)."),
             click.option("--fe", type=FINITE, default=None, help="Forcing frequency [Hz] (default 2.5)."),
-            click.option("--M", "M_", type=FINITE, default=None, help="Oscillator mass M = M1 + M2 [kg] (default 10.9)."),
-            click.option("--C", "C_", type=FINITE, default=None, help="Oscillator damping C = C1 + C2 [kg/s] (default 20)."),
+            click.option(
+                "--M", "M_", type=FINITE, default=None, help="Oscillator mass M = M1 + M2 [kg] (default 10.9)."
+            ),
+            click.option(
+                "--C", "C_", type=FINITE, default=None, help="Oscillator damping C = C1 + C2 [kg/s] (default 20)."
+            ),
             click.option("--K", "K_", type=FINITE, default=None, help="Oscillator stiffness [N/m] (default 1910)."),
-            click.option("--set", "sets", multiple=True, metavar="NAME=VALUE", help="Any other model parameter, SI units (see `pendsweep params`)."),
-            click.option("--model", "model_file", type=click.Path(dir_okay=False, path_type=Path), default=None, help="JSON file of model parameters (e.g. an extended model from `pendsweep diagnose`)."),
-            click.option("--mode", type=click.Choice(MODES), default="continue", show_default=True, help="continue: carry the state (kick 0.1 rad when at rest); fresh: same start every point; multistart: --starts seeded starts per point."),
-            click.option("--direction", type=click.Choice(DIRECTIONS), default="up", show_default=True, help="Traversal of continue branches; both exposes hysteresis."),
-            click.option("--backend", type=click.Choice(sorted(BACKENDS)), default="emulated", show_default=True, help="Simulation backend."),
-            click.option("-B", "--backend-option", "backend_opts", multiple=True, metavar="KEY=VALUE", help="Backend option, e.g. -B signum=stage."),
-            click.option("--dt", type=FINITE, default=None, help="Integration / controller step [s] (default 0.001)."),
-            click.option("--transient-periods", type=int, default=100, show_default=True, help="Forcing periods discarded at each point."),
-            click.option("--record-periods", type=int, default=20, show_default=True, help="Forcing periods recorded at each point."),
-            click.option("--theta0", type=FINITE, default=0.1, show_default=True, help="Initial pendulum angle [rad]."),
-            click.option("--thetadot0", type=FINITE, default=0.0, show_default=True, help="Initial pendulum rate [rad/s]."),
-            click.option("--kick", type=FINITE, default=0.1, show_default=True, help="Angle [rad] added when the pendulum is at rest (continue mode)."),
-            click.option("--rest-threshold", type=FINITE, default=0.0013, show_default=True, help="At rest: max|theta| below this [rad] (one encoder pulse)."),
-            click.option("--starts", type=int, default=8, show_default=True, help="Initial conditions per point in multistart mode."),
-            click.option("--seed", type=int, default=0, show_default=True, help="Seed of every random source."),
-            click.option("-j", "--jobs", type=int, default=-1, show_default=True, help="Parallel workers for independent branches/points (-1: all cores)."),
+            click.option(
+                "--set",
+                "sets",
+                multiple=True,
+                metavar="NAME=VALUE",
+                help="Any other model parameter, SI units (see `pendsweep params`).",
+            ),
+            click.option(
+                "--model",
+                "model_file",
+                type=click.Path(dir_okay=False, path_type=Path),
+                default=None,
+                help="JSON file of model parameters (e.g. an extended model from `pendsweep diagnose`).",
+            ),
+            click.option(
+                "--mode",
+                type=click.Choice(MODES),
+                default="continue",
+                show_default=True,
+                help="continue: carry the state (kick 0.1 rad when at rest); fresh: same start every point; multistart: --starts seeded starts per point.",
+            ),
+            click.option(
+                "--direction",
+                type=click.Choice(DIRECTIONS),
+                default="up",
+                show_default=True,
+                help="Traversal of continue branches; both exposes hysteresis (continue mode only).",
+            ),
+            click.option(
+                "--backend",
+                type=click.Choice(sorted(BACKENDS)),
+                default="emulated",
+                show_default=True,
+                help="Simulation backend.",
+            ),
+            click.option(
+                "-B",
+                "--backend-option",
+                "backend_opts",
+                multiple=True,
+                metavar="KEY=VALUE",
+                help="Backend option, e.g. -B signum=stage.",
+            ),
+            click.option(
+                "--dt",
+                type=STEP_S,
+                default=None,
+                help="Integration / controller step [s], 1e-6 to 0.01 (default 0.001).",
+            ),
+            click.option(
+                "--transient-periods",
+                type=PERIODS,
+                default=100,
+                show_default=True,
+                help="Forcing periods discarded at each point [-].",
+            ),
+            click.option(
+                "--record-periods",
+                type=click.IntRange(1, PERIODS.max),
+                default=20,
+                show_default=True,
+                help="Forcing periods recorded at each point [-].",
+            ),
+            click.option(
+                "--theta0",
+                type=ANGLE,
+                default=0.1,
+                show_default=True,
+                help="Initial pendulum angle [rad], within +-10 pi.",
+            ),
+            click.option(
+                "--thetadot0",
+                type=RATE,
+                default=0.0,
+                show_default=True,
+                help="Initial pendulum rate [rad/s], within +-1000.",
+            ),
+            click.option(
+                "--kick",
+                type=SMALL_ANGLE,
+                default=0.1,
+                show_default=True,
+                help="Angle [rad] added when the pendulum is at rest (continue mode only), 0 to pi.",
+            ),
+            click.option(
+                "--rest-threshold",
+                type=SMALL_ANGLE,
+                default=0.0013,
+                show_default=True,
+                help="At rest: max|theta| below this [rad] (one encoder pulse), 0 to pi.",
+            ),
+            click.option(
+                "--starts",
+                type=click.IntRange(1, 100_000),
+                default=8,
+                show_default=True,
+                help="Initial conditions per point (multistart mode only).",
+            ),
+            click.option(
+                "--seed", type=SEED, default=0, show_default=True, help="Seed of every random source (0 to 2**63-1)."
+            ),
+            click.option(
+                "-j",
+                "--jobs",
+                type=int,
+                default=-1,
+                show_default=True,
+                help="Parallel workers for independent branches/points (-1: all cores).",
+            ),
             *executor_options(),
-            click.option("-o", "--output", type=click.Path(path_type=Path), default=None, help="Results parquet (default results/<parameter>.parquet)."),
+            click.option(
+                "-o",
+                "--output",
+                type=click.Path(path_type=Path),
+                default=None,
+                help="Results file, .parquet (default results/<parameter>.parquet, replaced when it holds another configuration).",
+            ),
             click.option("--overwrite", is_flag=True, help="Replace earlier results at --output instead of resuming."),
-            click.option("--plot", "plot_path", type=click.Path(path_type=Path), default=None, help="Also draw the bifurcation diagram here (.png/.pdf)."),
-            click.option("--progress/--no-progress", default=None, help="Progress bar on stderr (default: when stderr is a terminal)."),
+            click.option(
+                "--plot",
+                "plot_path",
+                type=click.Path(path_type=Path),
+                default=None,
+                help="Also draw the bifurcation diagram here (.png/.pdf/.svg).",
+            ),
+            click.option(
+                "--progress/--no-progress",
+                default=None,
+                help="Progress bar on stderr (default: when stderr is a terminal).",
+            ),
         ]
         for opt in reversed(options):
             fn = opt(fn)
@@ -86,23 +221,58 @@ def sweep_options(default_step: float, unit: str):
     return deco
 
 
-def build_config(parameter: str, default_step: float, kw: dict[str, Any]) -> SweepConfig:
-    """SweepConfig from the shared sweep options."""
+def refuse_inapplicable(ctx: click.Context, kw: dict[str, Any]) -> None:
+    """Options that the chosen mode would ignore are errors, never stored as if they took effect."""
+    mode = kw["mode"]
+    if mode != "multistart" and given(ctx, "starts"):
+        raise ConfigError(f"--starts {kw['starts']} applies only to --mode multistart (mode is {mode})")
+    for name in ("direction", "kick"):
+        if mode != "continue" and given(ctx, name):
+            raise ConfigError(f"--{name} {kw[name]} applies only to --mode continue (mode is {mode})")
+
+
+def build_config(parameter: str, default_step: float, kw: dict[str, Any], ctx: click.Context | None = None):
+    """SweepConfig from the shared sweep options (every check that needs no simulation runs here)."""
+    from ..sweep import SweepConfig, value_range
+
+    if ctx is not None:
+        refuse_inapplicable(ctx, kw)
     step = kw["step"]
+    if step is not None and kw["points"] is not None:
+        raise ConfigError(f"give --step or --points, not both (got --step {step:g} and --points {kw['points']})")
     if step is None and kw["points"] is None:
         step = default_step if kw["stop"] >= kw["start"] else -default_step
+    if step and grid_size(kw["start"], kw["stop"], step) > MAX_POINTS:  # step 0 is refused by value_range
+        raise ConfigError(
+            f"--step {step:g} gives more than {MAX_POINTS} values from {kw['start']:g} to {kw['stop']:g}; use a larger step"
+        )
     values = value_range(kw["start"], kw["stop"], step, kw["points"])
     model: dict[str, Any] = {}
     if kw["model_file"] is not None:
-        model.update(load_model_file(kw["model_file"]))
-    for name, key in (("alpha", "alpha"), ("fe", "fe"), ("M", "M_"), ("C", "C_"), ("K", "K_")):
+        from_file = load_model_file(kw["model_file"])
+        if parameter in from_file:
+            click.echo(
+                f"note: the swept values replace {parameter} = {from_file.pop(parameter):g} from {kw['model_file']}",
+                err=True,
+            )
+        model.update(from_file)
+    options = {}
+    for name, option, key in FIXED_OPTIONS:
         if kw[key] is not None:
             model[name] = kw[key]
-    model.update({k: _finite(k, v) for k, v in _key_value(kw["sets"], "--set").items()})
-    for name in model:
-        if name not in PARAM_SPECS:
-            raise ParameterError(f"unknown parameter {name!r}; known: {', '.join(PARAM_SPECS)}")
-    backend_options = _key_value(kw["backend_opts"], "--backend-option")
+            options[name] = option + " "
+    sets = model_sets(kw["sets"])
+    for name, value in sets.items():
+        if name in options:
+            raise ConfigError(f"{options[name].strip()} and --set {name}={value:g} both fix {name}; give one")
+        options[name] = f"--set {name}="
+    model.update(sets)
+    if parameter in options:
+        raise ConfigError(
+            f"{options[parameter]}{model[parameter]:g} fixes the swept parameter {parameter!r}; "
+            "drop it (--from/--to give its values)"
+        )
+    backend_options: dict[str, Any] = key_values(kw["backend_opts"], "--backend-option")
     if kw["dt"] is not None:
         backend_options["dt"] = kw["dt"]
     return SweepConfig(
@@ -123,15 +293,31 @@ def build_config(parameter: str, default_step: float, kw: dict[str, Any]) -> Swe
     )
 
 
-def _finite(name: str, text: str) -> float:
+def replace_other_configuration(output: Path, config_hash: str) -> bool:
+    """For a *default* output path: True when it holds finished results of another configuration.
+
+    A default path is shared by every query of one kind (``results/alpha.parquet``,
+    ``results/hopf.parquet``): a second, different query replaces the finished
+    file of the first with a one-line note instead of failing. The same
+    configuration resumes as usual; an explicit ``-o`` is never replaced
+    without ``--overwrite``.
+    """
+    from ..results import read_metadata
+
+    if not output.is_file():
+        return False
     try:
-        return float(text)
-    except ValueError:
-        raise ParameterError(f"--set {name}={text!r}: value is not a number") from None
+        held = read_metadata(output).get("config_hash")
+    except (PendsweepError, ValueError):
+        held = None
+    if held == config_hash:
+        return False
+    click.echo(f"note: {output} held results of another configuration; replacing them (give -o to keep both)", err=True)
+    return True
 
 
 def execute(
-    config: SweepConfig,
+    config,
     output: Path,
     *,
     jobs: int,
@@ -141,13 +327,22 @@ def execute(
     title: str | None = None,
     executor: str = "local",
     scheduler: str | None = None,
+    default_output: bool = False,
 ) -> None:
-    """Run a sweep (on ``executor``), print a summary, optionally plot."""
-    from ..executors import make_executor
-    from ..plotting import plot_files
+    """Run a sweep (on ``executor``), print a summary, optionally plot.
 
+    ``default_output`` marks an output path the user did not choose: finished
+    results of another configuration there are replaced (with a note).
+    """
+    from ..executors import make_executor
+    from ..sweep import run_sweep, sweep_metadata
+
+    check_output(output, "-o/--output", (".parquet",))
+    check_output(plot_path, "--plot", FIGURE_SUFFIXES)
     if progress is None:
         progress = sys.stderr.isatty()
+    if default_output and not overwrite:
+        overwrite = replace_other_configuration(output, sweep_metadata(config)["config_hash"])
     if output.exists() and not overwrite:
         click.echo(f"{output} exists: reusing it if its configuration matches (--overwrite recomputes)")
     t0 = time.perf_counter()
@@ -161,7 +356,14 @@ def execute(
     counts = ", ".join(f"{n} {s}" for s, n in units.value_counts().items())
     click.echo(f"{len(units)} points ({counts}) in {elapsed:.2f} s -> {output}")
     if plot_path is not None:
+        from ..plotting import plot_files
+
         click.echo(f"plot -> {plot_files([output], plot_path, title=title)}")
+
+
+def _run_options(kw: dict[str, Any]) -> dict[str, Any]:
+    return dict(jobs=kw["jobs"], overwrite=kw["overwrite"], progress=kw["progress"], plot_path=kw["plot_path"],
+                executor=kw["executor"], scheduler=kw["scheduler"], default_output=kw["output"] is None)  # fmt: skip
 
 
 def _sweep_command(name: str, parameter: str, default_step: float, help_text: str):
@@ -169,25 +371,30 @@ def _sweep_command(name: str, parameter: str, default_step: float, help_text: st
 
     @main.command(name, help=help_text)
     @sweep_options(default_step, unit)
-    def command(**kw):
-        config = build_config(parameter, default_step, kw)
-        output = kw["output"] or Path(f"results/{parameter}.parquet")
-        execute(config, output, jobs=kw["jobs"], overwrite=kw["overwrite"], progress=kw["progress"], plot_path=kw["plot_path"],
-                executor=kw["executor"], scheduler=kw["scheduler"])
+    @click.pass_context
+    def command(ctx, **kw):
+        config = build_config(parameter, default_step, kw, ctx)
+        execute(config, kw["output"] or Path(f"results/{parameter}.parquet"), **_run_options(kw))
 
     return command
 
 
 _sweep_command(
-    "alpha", "alpha", 0.5,
+    "alpha",
+    "alpha",
+    0.5,
     "Sweep the forcing amplitude alpha [N].\n\nExample (Fig. 11(a)): pendsweep alpha --from 0 --to 45",
 )
 _sweep_command(
-    "fe", "fe", 0.01,
+    "fe",
+    "fe",
+    0.01,
     "Sweep the forcing frequency fe [Hz].\n\nExample: pendsweep fe --from 2.0 --to 2.6 --alpha 17",
 )
 _sweep_command(
-    "mass", "M", 0.1,
+    "mass",
+    "M",
+    0.1,
     "Sweep the oscillator mass M = M1 + M2 [kg].\n\nExample (Fig. 11(b)): pendsweep mass --from 0.1 --to 13 --alpha 17",
 )
 
@@ -195,7 +402,8 @@ _sweep_command(
 @main.command("sweep")
 @click.argument("parameter")
 @sweep_options(1.0, "parameter units")
-def sweep_any(parameter, **kw):
+@click.pass_context
+def sweep_any(ctx, parameter, **kw):
     """Sweep any model PARAMETER (see `pendsweep params` for names and units).
 
     Example: pendsweep sweep K --from 1500 --to 2500 --step 10
@@ -203,48 +411,113 @@ def sweep_any(parameter, **kw):
     if parameter not in PARAM_SPECS:
         raise ParameterError(f"unknown parameter {parameter!r}; steppable: {', '.join(PARAM_SPECS)}")
     if kw["step"] is None and kw["points"] is None:
-        raise ConfigError("give --step or --points for a generic sweep")
-    config = build_config(parameter, 1.0, kw)
-    output = kw["output"] or Path(f"results/{parameter}.parquet")
-    execute(config, output, jobs=kw["jobs"], overwrite=kw["overwrite"], progress=kw["progress"], plot_path=kw["plot_path"],
-            executor=kw["executor"], scheduler=kw["scheduler"])
+        raise ConfigError(f"give --step or --points for a generic sweep of {parameter!r}")
+    config = build_config(parameter, 1.0, kw, ctx)
+    execute(config, kw["output"] or Path(f"results/{parameter}.parquet"), **_run_options(kw))
+
+
+def read_sweep_metadata(path: Path, option: str = "RESULTS") -> dict[str, Any]:
+    """The metadata of a sweep result file; any other file is refused, naming what it is."""
+    from ..results import read_metadata
+
+    check_input(path, "results file")
+    try:
+        meta = read_metadata(path)
+    except ValueError as exc:  # JSON that is not JSON
+        raise ConfigError(f"{option} {str(path)!r}: its pendsweep metadata is not valid JSON ({exc})") from None
+    kind = meta.get("kind") if isinstance(meta, dict) else None
+    if kind != "sweep" or not isinstance(meta.get("config"), dict):
+        what = {
+            "hopf": "a Hopf scan from `pendsweep hopf`",
+            "trace": "a time series from `pendsweep trace`",
+            "free_decay": "a measured-data record",
+            "forced": "a measured-data record",
+            "substructured": "a measured-data record",
+        }.get(kind, f"a file of kind {kind!r}")
+        raise ConfigError(
+            f"{option} {str(path)!r} is {what}, not sweep results from `pendsweep alpha/fe/mass/sweep/run`"
+        )
+    return meta
+
+
+def _list_builtin() -> None:
+    from ..sweepfile import builtin_sweeps, load_sweep
+
+    for name, path in builtin_sweeps().items():
+        click.echo(f"{name:10} {load_sweep(path).description}")
 
 
 @main.command("run")
-@click.argument("definition", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("-o", "--output", type=click.Path(path_type=Path), default=None, help="Results parquet (default: the file's `output`).")
-@click.option("--plot/--no-plot", "do_plot", default=True, show_default=True, help="Draw the file's `plot` after the sweep.")
+@click.argument("definition", required=False, type=click.Path(path_type=Path))
+@click.option("--list", "list_builtin", is_flag=True, help="List the built-in sweep definitions and stop.")
+@click.option(
+    "-o",
+    "--output",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="Results file, .parquet (default: the definition's `output`).",
+)
+@click.option(
+    "--plot/--no-plot", "do_plot", default=True, show_default=True, help="Draw the definition's `plot` after the sweep."
+)
 @click.option("-j", "--jobs", type=int, default=-1, show_default=True, help="Parallel workers (-1: all cores).")
 @click.option("--overwrite", is_flag=True, help="Replace earlier results instead of resuming.")
 @click.option("--progress/--no-progress", default=None, help="Progress bar on stderr (default: when a terminal).")
 @apply_options(executor_options())
-def run_definition(definition, output, do_plot, jobs, overwrite, progress, executor, scheduler):
-    """Run a declarative sweep (sweeps/NAME.toml), or regenerate a results parquet from its own metadata.
+def run_definition(definition, list_builtin, output, do_plot, jobs, overwrite, progress, executor, scheduler):
+    """Run a declarative sweep: a built-in NAME (see --list), a TOML file, or a results parquet to regenerate.
 
-    Example: pendsweep run sweeps/fig11a.toml
+    Examples: pendsweep run fig11a; pendsweep run my-sweep.toml;
+    pendsweep run results/fig11a.parquet -o copy.parquet
     """
-    from ..results import read_metadata
     from ..sweepfile import load_sweep
 
+    if list_builtin:
+        _list_builtin()
+        return
+    if definition is None:
+        raise ConfigError("give a sweep: a built-in name (pendsweep run --list), a .toml file or a results .parquet")
     if definition.suffix == ".parquet":
-        meta = read_metadata(definition)
-        config = SweepConfig.from_dict(meta["config"])
+        from ..sweep import SweepConfig
+
+        meta = read_sweep_metadata(definition, "DEFINITION")
         if output is None:
             raise ConfigError("regenerating from a parquet needs -o/--output for the new file")
-        plot_path, title = None, None
+        if output.resolve() == definition.resolve():
+            raise ConfigError(f"-o {str(output)!r} is the results file being regenerated; give another path")
+        try:
+            config = SweepConfig.from_dict(meta["config"])
+        except (TypeError, KeyError) as exc:
+            raise ConfigError(
+                f"DEFINITION {str(definition)!r}: its stored configuration is not a sweep's ({exc})"
+            ) from None
+        plot_path, title, default_output = None, None, False
     else:
         spec = load_sweep(definition)
-        config, output = spec.config, output or spec.output
+        config, default_output = spec.config, output is None
+        output = output or spec.output
         plot_path = spec.plot if do_plot else None
         title = spec.description or None
     execute(config, output, jobs=jobs, overwrite=overwrite, progress=progress, plot_path=plot_path, title=title,
-            executor=executor, scheduler=scheduler)
+            executor=executor, scheduler=scheduler, default_output=default_output)  # fmt: skip
 
 
 @main.command("plot", short_help="Draw a Fig. 11-style bifurcation diagram.")
-@click.argument("results", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
-@click.option("-o", "--output", type=click.Path(path_type=Path), default=None, help="Figure file, .png/.pdf/.svg (default: first input with .png).")
-@click.option("--observable", type=click.Choice(["theta_peak", "theta_absmax", "theta_sec", "y_absmax"]), default="theta_peak", show_default=True, help="Quantity on the vertical axis (angles in rad, y in m).")
+@click.argument("results", nargs=-1, required=True, type=click.Path(path_type=Path))
+@click.option(
+    "-o",
+    "--output",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="Figure file, .png/.pdf/.svg (default: first input with .png).",
+)
+@click.option(
+    "--observable",
+    type=click.Choice(["theta_peak", "theta_absmax", "theta_sec", "y_absmax"]),
+    default="theta_peak",
+    show_default=True,
+    help="Quantity on the vertical axis (angles in rad, y in m).",
+)
 @click.option("--title", default=None, help="Figure title.")
 def plot_command(results, output, observable, title):
     """Draw a Fig. 11-style bifurcation diagram of one or more result files.
@@ -253,22 +526,47 @@ def plot_command(results, output, observable, title):
     """
     from ..plotting import plot_files
 
-    output = output or Path(results[0]).with_suffix(".png")
+    for path in results:
+        read_sweep_metadata(path)
+    output = check_output(output or Path(results[0]).with_suffix(".png"), "-o/--output", FIGURE_SUFFIXES)
     click.echo(f"plot -> {plot_files(list(results), output, observable, title)}")
 
 
 @main.command("figures")
 @click.argument("names", nargs=-1)
-@click.option("--out", "outdir", type=click.Path(file_okay=False, path_type=Path), default=Path("results/figures"), show_default=True, help="Output folder.")
+@click.option(
+    "-o",
+    "--output",
+    "outdir",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="Output folder [default: results/figures].",
+)
+@click.option(
+    "--out", "outdir_old", type=click.Path(path_type=Path), default=None, hidden=True, deprecated="use -o/--output"
+)
 @click.option("--quick", is_flag=True, help="Small, fast versions (smoke test).")
-def figures_command(names, outdir, quick):
-    """Regenerate the paper's figures (all, or the NAMES given)."""
+def figures_command(names, outdir, outdir_old, quick):
+    """Regenerate the paper's figures (all, or the NAMES given; e.g. pendsweep figures fig8 fig9)."""
     from ..figures import FIGURES, make_figures
 
+    if outdir is not None and outdir_old is not None:
+        raise ConfigError("give the output folder once (-o/--output; --out is its old name)")
+    outdir = check_output_dir(outdir or outdir_old or Path("results/figures"), "-o/--output")
+    unknown = [n for n in names if n not in FIGURES]
+    if unknown:
+        raise ConfigError(f"unknown figure(s) {', '.join(unknown)}; choose from {', '.join(FIGURES)}")
     if not names:
         click.echo(f"figures: {', '.join(FIGURES)}")
-    for path in make_figures(list(names), outdir, quick):
-        click.echo(f"wrote {path}")
+    for name in names or FIGURES:
+        written = make_figures([name], outdir, quick)
+        for path in written:
+            click.echo(f"wrote {path}")
+        if not written:
+            from ..data import DATA_ENV
+
+            click.echo(f"{name}: skipped, its measured data were not found (set {DATA_ENV} to the folder holding "
+                       "measured/free-swing-rotary-pendulum)", err=True)  # fmt: skip
 
 
 @main.command("params")

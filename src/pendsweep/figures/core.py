@@ -4,20 +4,15 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from ..analytic import quenching_amplitudes  # noqa: E402
-from ..backends import make_backend  # noqa: E402
-from ..params import FIG8, FIG9_CO, FIG9_PO  # noqa: E402
-from ..plotting import plot_files  # noqa: E402
-from ..sweep import run_sweep  # noqa: E402
-from ..sweepfile import SWEEPS_DIR, load_sweep  # noqa: E402
-from . import figure  # noqa: E402
-
+from ..analytic import quenching_amplitudes
+from ..backends import make_backend
+from ..params import FIG8, FIG9_CO, FIG9_PO
+from ..plotting import new_figure, plot_files
+from ..sweep import run_sweep
+from ..sweepfile import SWEEPS_DIR, load_sweep
+from . import figure
 
 
 def fig8_traces(quick: bool):
@@ -37,8 +32,12 @@ def fig8(outdir: Path, quick: bool) -> list[Path]:
     """Fig. 8: energy transfer at 2:1 resonance, alpha = 2 N, fe = 2.25 Hz."""
     rest, kicked = fig8_traces(quick)
     y1, y2 = quenching_amplitudes(FIG8)
-    fig, (ax_y, ax_t) = plt.subplots(2, 1, figsize=(8, 5.5), sharex=True, constrained_layout=True)
-    for df, colour, label in ((rest, "tab:blue", "ST (from rest)"), (kicked, "tab:red", r"kicked, $\theta$ += 0.1 rad")):
+    fig = new_figure((8, 5.5))
+    ax_y, ax_t = fig.subplots(2, 1, sharex=True)
+    for df, colour, label in (
+        (rest, "tab:blue", "ST (from rest)"),
+        (kicked, "tab:red", r"kicked, $\theta$ += 0.1 rad"),
+    ):
         ax_y.plot(df["t"], 1e3 * df["y"], color=colour, lw=0.4, label=label)
         ax_t.plot(df["t"], df["theta"], color=colour, lw=0.4)
     for value, style, name in ((y1, "--", r"$y_{1max}$"), (y2, ":", r"$y_{2max}$")):
@@ -56,7 +55,6 @@ def fig8(outdir: Path, quick: bool) -> list[Path]:
     ax_t.set_xlabel("t [s]")
     path = outdir / "fig8.png"
     fig.savefig(path, dpi=150)
-    plt.close(fig)
     return [path]
 
 
@@ -65,7 +63,8 @@ def fig9(outdir: Path, quick: bool) -> list[Path]:
     """Fig. 9: periodic (alpha = 5 N) and chaotic (12 N) orbits at fe = 2.2 Hz."""
     backend = make_backend("emulated")
     transient, shown = (20, 10) if quick else (100, 20)
-    fig, axes = plt.subplots(2, 2, figsize=(9, 5.5), constrained_layout=True)
+    fig = new_figure((9, 5.5))
+    axes = fig.subplots(2, 2)
     for col, (params, name) in enumerate(((FIG9_PO, "PO, alpha = 5 N"), (FIG9_CO, "CO, alpha = 12 N"))):
         run = backend.run_point(params, backend.initial_state(params, 0, 0, 0.1, 0), transient, 1)
         trace = backend.trace(params, run.state, shown)
@@ -77,7 +76,6 @@ def fig9(outdir: Path, quick: bool) -> list[Path]:
         axes[1, col].set_xlabel("t [s] after the transient")
     path = outdir / "fig9.png"
     fig.savefig(path, dpi=150)
-    plt.close(fig)
     return [path]
 
 

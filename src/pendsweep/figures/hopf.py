@@ -4,17 +4,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from ..hopf import HopfConfig, run_hopf  # noqa: E402
-from ..params import FIG9_CO, FIG9_PO, FIG11A  # noqa: E402
-from ..plotting import draw_bifurcation  # noqa: E402
-from ..sweep import SweepConfig, run_sweep, sweep_metadata, value_range  # noqa: E402
-from . import figure  # noqa: E402
+from ..hopf import HopfConfig, run_hopf
+from ..params import FIG9_CO, FIG9_PO, FIG11A
+from ..plotting import draw_bifurcation, new_figure
+from ..sweep import SweepConfig, run_sweep, sweep_metadata, value_range
+from . import figure
 
 #: Masses of Fig. 10(b) [kg].
 FIG10B_MASSES = (5.9, 10.9, 15.9, 20.9)
@@ -30,7 +26,6 @@ def _grid(quick: bool) -> tuple[float, ...]:
 
 def _save(fig, path: Path) -> list[Path]:
     fig.savefig(path, dpi=150)
-    plt.close(fig)
     return [path]
 
 
@@ -46,20 +41,41 @@ def fig10a(outdir: Path, quick: bool) -> list[Path]:
     hybrid = run_hopf(
         HopfConfig(omega_hat=_grid(quick), methods=("simulate",), kick=BIG_KICK, backend="substructured"), n_jobs=2
     )
-    fig, ax = plt.subplots(figsize=(7.5, 4.8), constrained_layout=True)
-    for method, style in (("analytic", dict(color="0.5", lw=2.5, label="Eq. (12)")),
-                          ("floquet", dict(color="tab:blue", lw=1.0, label="Floquet (exact for b1 = b3 = 0)"))):
+    fig = new_figure((7.5, 4.8))
+    ax = fig.subplots()
+    for method, style in (
+        ("analytic", dict(color="0.5", lw=2.5, label="Eq. (12)")),
+        ("floquet", dict(color="tab:blue", lw=1.0, label="Floquet (exact for b1 = b3 = 0)")),
+    ):
         sel = lines[lines.method == method]
         ax.plot(sel.omega_hat, sel.alpha_H, **style)
     kick = rig["kick"].iloc[0]
-    ax.plot(smooth.omega_hat, smooth.alpha_H, "o", mfc="none", color="tab:green",
-            label=f"simulated, b1 = b3 = 0 (kick {kick:g} rad)")
-    ax.plot(rig.omega_hat, rig.alpha_H, "*", color="k", ms=8,
-            label=f"simulated, Table IV damping (kick {kick:g} rad)")
-    ax.plot(rig_kicked.omega_hat, rig_kicked.alpha_H, "^", color="tab:purple", ms=5,
-            label=f"simulated, Table IV damping (kick {BIG_KICK:g} rad)")
-    ax.plot(hybrid.omega_hat, hybrid.alpha_H, "s", mfc="none", color="tab:orange", ms=6,
-            label=f"substructured backend, Table IV damping (kick {BIG_KICK:g} rad)")
+    ax.plot(
+        smooth.omega_hat,
+        smooth.alpha_H,
+        "o",
+        mfc="none",
+        color="tab:green",
+        label=f"simulated, b1 = b3 = 0 (kick {kick:g} rad)",
+    )
+    ax.plot(rig.omega_hat, rig.alpha_H, "*", color="k", ms=8, label=f"simulated, Table IV damping (kick {kick:g} rad)")
+    ax.plot(
+        rig_kicked.omega_hat,
+        rig_kicked.alpha_H,
+        "^",
+        color="tab:purple",
+        ms=5,
+        label=f"simulated, Table IV damping (kick {BIG_KICK:g} rad)",
+    )
+    ax.plot(
+        hybrid.omega_hat,
+        hybrid.alpha_H,
+        "s",
+        mfc="none",
+        color="tab:orange",
+        ms=6,
+        label=f"substructured backend, Table IV damping (kick {BIG_KICK:g} rad)",
+    )
     for params, name in ((FIG9_PO, "PO"), (FIG9_CO, "CO")):
         ax.plot(params.omega_hat, params.alpha, "x", color="tab:red", ms=9, mew=2)
         ax.annotate(name, (params.omega_hat, params.alpha), textcoords="offset points", xytext=(6, 2), color="tab:red")
@@ -69,8 +85,9 @@ def fig10a(outdir: Path, quick: bool) -> list[Path]:
     ax.set_xlabel(r"$\hat\omega = \omega_e / (2\omega_p)$")
     ax.set_ylabel(r"$\alpha_H$ [N]")
     ax.set_ylim(0, 1.1 * max(rig.alpha_H.max(), lines.alpha_H.max()))
-    ax.set_title("Fig. 10(a): Hopf boundary of the semi-trivial solution, M = 10.9 kg, C = 20 kg/s, K = 1910 N/m",
-                 fontsize=8)
+    ax.set_title(
+        "Fig. 10(a): Hopf boundary of the semi-trivial solution, M = 10.9 kg, C = 20 kg/s, K = 1910 N/m", fontsize=8
+    )
     ax.legend(fontsize=7, loc="upper center")
     ax.grid(alpha=0.3)
     return _save(fig, outdir / f"fig10a{'-quick' if quick else ''}.png")
@@ -82,7 +99,8 @@ def fig10b(outdir: Path, quick: bool) -> list[Path]:
     masses = FIG10B_MASSES[::3] if quick else FIG10B_MASSES
     sim = run_hopf(HopfConfig(omega_hat=_grid(quick), masses=masses, methods=("simulate",), kick=BIG_KICK), n_jobs=2)
     fine = run_hopf(HopfConfig(omega_hat=tuple(np.linspace(*OMEGA_HAT, 121)), masses=masses, methods=("analytic",)))
-    fig, ax = plt.subplots(figsize=(7.5, 4.8), constrained_layout=True)
+    fig = new_figure((7.5, 4.8))
+    ax = fig.subplots()
     for k, M in enumerate(masses):
         colour = f"C{k}"
         s, a = sim[sim.M == M], fine[fine.M == M]
@@ -91,8 +109,11 @@ def fig10b(outdir: Path, quick: bool) -> list[Path]:
     ax.set_xlabel(r"$\hat\omega = \omega_e / (2\omega_p)$")
     ax.set_ylabel(r"$\alpha_H$ [N]")
     ax.set_ylim(0, 1.05 * sim.alpha_H.max())
-    ax.set_title(f"Fig. 10(b): Hopf boundary for four masses, C = 20 kg/s, K = 1910 N/m\n"
-                 f"stars: simulated protocol, Table IV damping, kick {BIG_KICK:g} rad; lines: Eq. (12)", fontsize=8)
+    ax.set_title(
+        f"Fig. 10(b): Hopf boundary for four masses, C = 20 kg/s, K = 1910 N/m\n"
+        f"stars: simulated protocol, Table IV damping, kick {BIG_KICK:g} rad; lines: Eq. (12)",
+        fontsize=8,
+    )
     ax.legend(fontsize=7)
     ax.grid(alpha=0.3)
     return _save(fig, outdir / f"fig10b{'-quick' if quick else ''}.png")
@@ -115,7 +136,8 @@ def coexistence_sweeps(quick: bool) -> list[SweepConfig]:
 def coexistence(outdir: Path, quick: bool) -> list[Path]:
     """Fig. 11(a) with motion bands: the periodic branch past 39 N coexists with rotation and chaos."""
     results = [(run_sweep(c, n_jobs=2), sweep_metadata(c)) for c in coexistence_sweeps(quick)]
-    fig, ax = plt.subplots(figsize=(8, 5), constrained_layout=True)
+    fig = new_figure((8, 5))
+    ax = fig.subplots()
     draw_bifurcation(ax, results, "theta_peak")
     ax.set_title(
         f"Fig. 11(a) section A (fe = {FIG11A.fe:g} Hz, emulated, noiseless): continuation up/down,\n"
@@ -123,4 +145,3 @@ def coexistence(outdir: Path, quick: bool) -> list[Path]:
         fontsize=8,
     )
     return _save(fig, outdir / f"coexistence{'-quick' if quick else ''}.png")
-

@@ -10,21 +10,17 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+import pandas as pd
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-
-from ..backends import make_backend  # noqa: E402
-from ..hybrid import run_trace  # noqa: E402
-from ..params import FIG9_CO, FIG9_PO, ModelParams  # noqa: E402
-from ..plotting import draw_bifurcation  # noqa: E402
-from ..sweep import run_sweep, sweep_metadata  # noqa: E402
-from ..sync import TABLE_I, SyncReport, error_psd, sync_ratio  # noqa: E402
-from . import figure  # noqa: E402
-from ..sweepfile import SWEEPS_DIR, load_sweep  # noqa: E402
+from ..backends import make_backend
+from ..hybrid import run_trace
+from ..params import FIG9_CO, FIG9_PO, ModelParams
+from ..plotting import draw_bifurcation, new_figure
+from ..sweep import run_sweep, sweep_metadata
+from ..sweepfile import SWEEPS_DIR, load_sweep
+from ..sync import TABLE_I, SyncReport, error_psd, sync_ratio
+from . import figure
 
 INITIAL = (0.0, 0.0, 0.1, 0.0)
 CASES = {"PO": FIG9_PO, "CO": FIG9_CO}
@@ -46,7 +42,8 @@ def hybrid_pair(params: ModelParams, quick: bool, **options) -> tuple[pd.DataFra
 @figure("fig9_hybrid")
 def fig9_hybrid(outdir: Path, quick: bool) -> list[Path]:
     """Fig. 9: PO and CO time series, substructured (solid) against emulated (dashed)."""
-    fig, axes = plt.subplots(2, 2, figsize=(11, 6), sharex=True)
+    fig = new_figure((11, 6), layout=None)
+    axes = fig.subplots(2, 2, sharex=True)
     for col, (label, params) in enumerate(CASES.items()):
         sub, emu = hybrid_pair(params, quick)
         ax_y, ax_t = axes[0, col], axes[1, col]
@@ -63,7 +60,6 @@ def fig9_hybrid(outdir: Path, quick: bool) -> list[Path]:
     fig.tight_layout()
     path = outdir / "fig9_hybrid.png"
     fig.savefig(path, dpi=120)
-    plt.close(fig)
     return [path]
 
 
@@ -92,7 +88,8 @@ def fig11_hybrid(outdir: Path, quick: bool) -> list[Path]:
     Below M ~ 4 kg (mass ratio (M2 + m)/M1 > 0.38) the default substructured loop
     trips; those points are marked as unstable (see docs/substructured.md).
     """
-    fig, axes = plt.subplots(2, 2, figsize=(12, 8), sharey=True)
+    fig = new_figure((12, 8), layout=None)
+    axes = fig.subplots(2, 2, sharey=True)
     for row, name in enumerate(("fig11a", "fig11b")):
         for col, (backend, result) in enumerate(_hybrid_sweeps(name, quick).items()):
             ax = axes[row, col]
@@ -103,7 +100,6 @@ def fig11_hybrid(outdir: Path, quick: bool) -> list[Path]:
     fig.tight_layout()
     path = outdir / "fig11_hybrid.png"
     fig.savefig(path, dpi=120)
-    plt.close(fig)
     return [path]
 
 
@@ -154,7 +150,7 @@ def _table_text(table: pd.DataFrame) -> str:
 def fig12_sync(outdir: Path, quick: bool) -> list[Path]:
     """Fig. 12 (a) sync subspace of PO, (b) sync error and (c) its PSD for PO and CO, with Table I."""
     table, traces = table_i_rows(quick)
-    fig = plt.figure(figsize=(13, 6.5))
+    fig = new_figure((13, 6.5), layout=None)
     grid = fig.add_gridspec(2, 3, height_ratios=[4, 1])
     ax_a, ax_b, ax_c = (fig.add_subplot(grid[0, i]) for i in range(3))
     po = traces["PO"]
@@ -182,7 +178,6 @@ def fig12_sync(outdir: Path, quick: bool) -> list[Path]:
     fig.tight_layout()
     path = outdir / "fig12_sync.png"
     fig.savefig(path, dpi=120)
-    plt.close(fig)
     csv = outdir / "table1_sync.csv"
     table.to_csv(csv, index=False)
     print(text)
@@ -191,7 +186,8 @@ def fig12_sync(outdir: Path, quick: bool) -> list[Path]:
 
 def draw_sync(trace: pd.DataFrame, report: SyncReport, path: Path) -> Path:
     """Four panels of one trace: subspace, error, error PSD, online delay estimate."""
-    fig, axes = plt.subplots(2, 2, figsize=(10, 8))
+    fig = new_figure((10, 8), layout=None)
+    axes = fig.subplots(2, 2)
     y, x = trace["y"], trace["x_meas"]
     lim = 1.05 * y.abs().max()
     axes[0, 0].plot(y, x, "k-", lw=0.6)
@@ -199,17 +195,25 @@ def draw_sync(trace: pd.DataFrame, report: SyncReport, path: Path) -> Path:
     axes[0, 0].set(xlabel="target y* [m]", ylabel="measured x [m]", title=f"sync subspace (ratio {report.ratio:.2f} %)")
     e = y - x
     axes[0, 1].plot(trace["t"], e, "k-", lw=0.6)
-    axes[0, 1].set(xlabel="time [s]", ylabel="y* - x [m]", title=f"J2 {report.indices.J2:.2f} %, J3 {report.indices.J3:.2f} %")
+    axes[0, 1].set(
+        xlabel="time [s]", ylabel="y* - x [m]", title=f"J2 {report.indices.J2:.2f} %, J3 {report.indices.J3:.2f} %"
+    )
     f, pxx = error_psd(e.to_numpy(), float(np.median(np.diff(trace["t"]))))
     axes[1, 0].semilogy(f, pxx, "k-", lw=0.8)
-    axes[1, 0].set(xlabel="frequency [Hz]", ylabel="PSD [m$^2$/Hz]", title=f"error PSD (peak {report.peak_frequency:.2f} Hz)", xlim=(0, 20))
+    axes[1, 0].set(
+        xlabel="frequency [Hz]",
+        ylabel="PSD [m$^2$/Hz]",
+        title=f"error PSD (peak {report.peak_frequency:.2f} Hz)",
+        xlim=(0, 20),
+    )
     od = report.delay_online
     axes[1, 1].plot(od["t"], 1e3 * od["delay"], "k.-", ms=3)
-    axes[1, 1].set(xlabel="time [s]", ylabel="delay [ms]", title=f"online delay estimate (J1 {1e3 * report.indices.J1:.2f} ms)")
+    axes[1, 1].set(
+        xlabel="time [s]", ylabel="delay [ms]", title=f"online delay estimate (J1 {1e3 * report.indices.J1:.2f} ms)"
+    )
     fig.tight_layout()
     Path(path).parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120)
-    plt.close(fig)
     return Path(path)
 
 

@@ -5,13 +5,9 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from ..params import (  # noqa: E402
+from ..params import (
     FIG5_LOOP,
     FIG6_OMEGA_N,
     FIG6_ZETA,
@@ -22,7 +18,8 @@ from ..params import (  # noqa: E402
     TABLE_II_P,
     LoopParams,
 )
-from ..stability import (  # noqa: E402
+from ..plotting import new_figure
+from ..stability import (
     SampledLoop,
     delay_margin,
     loop_response,
@@ -33,7 +30,7 @@ from ..stability import (  # noqa: E402
     simulated_growth,
     stability_chart,
 )
-from . import figure  # noqa: E402
+from . import figure
 
 #: The compensation check: Table II, p = 0.225, servo, first-order 5-point prediction by 18 ms.
 COMPENSATED = SampledLoop(actuator="servo", predictor_order=1, predictor_points=5, tau_hat=0.018)
@@ -50,7 +47,8 @@ def bode_figure(loop: LoopParams, path: Path, sampled: SampledLoop | None = None
     wn = math.sqrt(loop.K / loop.M1)
     w = np.geomspace(wn / 100.0, wn * 100.0, 4000)
     L = loop_response(loop, w)
-    fig, (ax_m, ax_p) = plt.subplots(2, 1, figsize=(7.5, 6), sharex=True, constrained_layout=True)
+    fig = new_figure((7.5, 6))
+    ax_m, ax_p = fig.subplots(2, 1, sharex=True)
     ax_m.semilogx(w, 20 * np.log10(np.abs(L)), color="k", label=r"$F_s N_m$")
     ax_p.semilogx(w, np.degrees(np.unwrap(np.angle(L))), color="k")
     if sampled is not None:
@@ -83,7 +81,6 @@ def bode_figure(loop: LoopParams, path: Path, sampled: SampledLoop | None = None
     ax_p.set_ylabel("phase [deg]")
     ax_p.set_xlabel(r"$\omega$ [rad/s]")
     fig.savefig(path, dpi=150)
-    plt.close(fig)
     return path
 
 
@@ -97,8 +94,9 @@ def fig5_margin(outdir: Path, quick: bool) -> list[Path]:
 def fig6_chart(outdir: Path, quick: bool) -> list[Path]:
     """Fig. 6: critical delay against p = m_s/M1 for C2 = 0 and C2 = C1."""
     p = np.linspace(0.005, 0.995, 100 if quick else 400)
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), constrained_layout=True)
-    text = r"$\omega_n$ = %g rad/s, $\zeta$ = %g (section 2.4)" % (FIG6_OMEGA_N, FIG6_ZETA)
+    fig = new_figure((11, 4.2))
+    axes = fig.subplots(1, 2)
+    text = rf"$\omega_n$ = {FIG6_OMEGA_N:g} rad/s, $\zeta$ = {FIG6_ZETA:g} (section 2.4)"
     for ax, (wn, zeta, title) in zip(
         axes, ((FIG6_OMEGA_N, FIG6_ZETA, text), (math.sqrt(750.0), 10.0 / (2.0 * math.sqrt(12000.0)), "M1 = 4 kg, C1 = 10 kg/s, K = 3000 N/m (caption, Table II)"))
     ):  # fmt: skip
@@ -108,7 +106,14 @@ def fig6_chart(outdir: Path, quick: bool) -> list[Path]:
             stable = p[np.isinf(tau)]
             if stable.size:
                 ax.axvspan(0, stable.max(), color="0.9", zorder=0)
-                ax.text(stable.max() / 2, 0.02, "stable for\nall delays\n(C2 = 0)", ha="center", fontsize=6, transform=ax.get_xaxis_transform())
+                ax.text(
+                    stable.max() / 2,
+                    0.02,
+                    "stable for\nall delays\n(C2 = 0)",
+                    ha="center",
+                    fontsize=6,
+                    transform=ax.get_xaxis_transform(),
+                )
         ax.axvline(1.0, color="tab:red", lw=0.8)
         ax.set_yscale("log")
         ax.set_xlim(0, 1.05)
@@ -122,7 +127,6 @@ def fig6_chart(outdir: Path, quick: bool) -> list[Path]:
     fig.suptitle("Fig. 6: maximum delay against mass ratio; p >= 1 is unstable for every delay (neutral)", fontsize=9)
     path = outdir / "fig6_chart.png"
     fig.savefig(path, dpi=150)
-    plt.close(fig)
     return [path]
 
 
@@ -145,12 +149,15 @@ def validation_rows(quick: bool) -> list[dict]:
 def stability_validation(outdir: Path, quick: bool) -> list[Path]:
     """Critical delay and frequency: continuous theory, exact sampled loop, backend simulation."""
     rows = validation_rows(quick)
-    fig, (ax_t, ax_w, ax_c) = plt.subplots(1, 3, figsize=(14, 4.2), constrained_layout=True)
+    fig = new_figure((14, 4.2))
+    ax_t, ax_w, ax_c = fig.subplots(1, 3)
     for actuator, colour in (("delay", "tab:blue"), ("servo", "tab:orange")):
         sel = [r for r in rows if r["actuator"] == actuator]
         p = [r["p"] for r in sel]
         ax_t.plot(p, [r["theory"].tau_star for r in sel], "-", color=colour, label=f"{actuator}: continuous theory")
-        ax_t.plot(p, [r["exact"].tau_star for r in sel], "x", color=colour, ms=9, label=f"{actuator}: exact sampled loop")
+        ax_t.plot(
+            p, [r["exact"].tau_star for r in sel], "x", color=colour, ms=9, label=f"{actuator}: exact sampled loop"
+        )
         ax_t.plot(p, [r["sim"].tau_star for r in sel], "o", mfc="none", color=colour, label=f"{actuator}: simulation")
         ax_w.plot(p, [r["theory"].omega_star for r in sel], "-", color=colour, label=f"{actuator}: theory")
         ax_w.plot(p, [r["sim"].omega_star for r in sel], "o", mfc="none", color=colour, label=f"{actuator}: simulation")
@@ -167,8 +174,13 @@ def stability_validation(outdir: Path, quick: bool) -> list[Path]:
     none = sampled_delay_margin(loop, SampledLoop(actuator="servo"), 0.3)
     comp = sampled_delay_margin(loop, COMPENSATED, 0.3)
     tau = 0.5 * (none.tau_star + comp.tau_star)
-    for cfg, colour, label in ((SampledLoop(actuator="servo"), "tab:red", "no prediction"), (COMPENSATED, "tab:green", "1st order, 5 points, tau_hat 18 ms")):
-        g = simulated_growth(model, tau, actuator="servo", predictor_order=cfg.predictor_order, tau_hat=cfg.tau_hat or 0.0)
+    for cfg, colour, label in (
+        (SampledLoop(actuator="servo"), "tab:red", "no prediction"),
+        (COMPENSATED, "tab:green", "1st order, 5 points, tau_hat 18 ms"),
+    ):
+        g = simulated_growth(
+            model, tau, actuator="servo", predictor_order=cfg.predictor_order, tau_hat=cfg.tau_hat or 0.0
+        )
         ax_c.bar(label, g.sigma, color=colour)
     ax_c.axhline(0.0, color="k", lw=0.8)
     ax_c.set_ylabel(r"simulated growth rate of $y^*$ [1/s]")
@@ -180,5 +192,4 @@ def stability_validation(outdir: Path, quick: bool) -> list[Path]:
     fig.suptitle("Stability boundary: theory against the substructured backend (Table II sets, C2 = C1)", fontsize=9)
     path = outdir / "stability_validation.png"
     fig.savefig(path, dpi=150)
-    plt.close(fig)
     return [path]
