@@ -1,5 +1,10 @@
 """CLI: real sweeps end to end, and every bad input gives exit 2 with a clear message."""
 
+import os
+import subprocess
+import sys
+from pathlib import Path
+
 import pytest
 from click.testing import CliRunner
 
@@ -114,3 +119,101 @@ def test_figures_quick_smoke(tmp_path):
     assert r.exit_code == 0, r.output
     assert {p.name for p in tmp_path.glob("*.png")} == {"fig8.png", "fig9.png", "fig11a-quick.png"}
     assert invoke("figures", "fig99").exit_code == 2
+
+
+def test_run_by_name_list_and_wrong_kind(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    r = invoke("run", "--list")
+    assert r.exit_code == 0 and "fig11a" in r.output and "fig11b" in r.output
+    r = invoke("run", "fig99")
+    assert r.exit_code == 2 and "no built-in sweep" in r.output and "fig11a" in r.output
+    hopf = tmp_path / "h.parquet"
+    assert invoke("hopf", "--what", "1.1", "--method", "analytic", "-o", hopf, "--no-progress").exit_code == 0
+    for args in (["run", hopf, "-o", tmp_path / "x.parquet"], ["plot", hopf]):
+        r = invoke(*args)
+        assert r.exit_code == 2 and "is a Hopf scan" in r.output and "Traceback" not in r.output
+
+
+def test_default_output_replaced_for_another_configuration_and_resumed_for_the_same(tmp_path, monkeypatch):
+    """A second, different query into the default path replaces the first with a note; the same one resumes."""
+    from pendsweep.results import read_metadata
+
+    monkeypatch.chdir(tmp_path)
+    default = tmp_path / "results" / "hopf.parquet"
+    r = invoke("hopf", "--what", "1.1", "--method", "analytic", "--no-progress")
+    assert r.exit_code == 0, r.output
+    first = read_metadata(default)
+    r = invoke("hopf", "--what", "1.0,1.05", "--method", "analytic", "--no-progress")
+    assert r.exit_code == 0 and "held results of another configuration" in r.output
+    second = read_metadata(default)
+    assert second["config"]["omega_hat"] == [1.0, 1.05] and second["config_hash"] != first["config_hash"]
+    r = invoke("hopf", "--what", "1.0,1.05", "--method", "analytic", "--no-progress")
+    assert r.exit_code == 0 and "another configuration" not in r.output
+    assert read_metadata(default)["created"] == second["created"]  # reused, not recomputed
+    # an explicit -o is never replaced silently
+    r = invoke("hopf", "--what", "1.2", "--method", "analytic", "--no-progress", "-o", default)
+    assert r.exit_code == 2 and "different configuration" in r.output
+
+
+def test_importing_pendsweep_leaves_the_matplotlib_backend_alone():
+    code = "import pendsweep.cli, pendsweep.plotting, pendsweep.figures, matplotlib; print(matplotlib.get_backend())"
+    env = {**os.environ, "MPLBACKEND": "svg"}
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "svg"
+
+
+def test_installed_wheel_runs_from_an_empty_folder(tmp_path):
+    """The built wheel, installed away from the source tree, runs the README's commands from an empty folder.
+
+    Dependencies come from the running interpreter; the package itself only
+    from the wheel (asserted), so sweeps, figures and data locators cannot
+    lean on the checkout.
+    """
+    root = Path(__file__).resolve().parents[1]
+    dist, site, work = tmp_path / "dist", tmp_path / "site", tmp_path / "empty"
+    work.mkdir()
+    pip = [sys.executable, "-m", "pip", "--disable-pip-version-check", "-q"]
+    built = subprocess.run(
+        [*pip, "wheel", "--no-deps", str(root), "-w", str(dist)], capture_output=True, text=True, timeout=300
+    )
+    assert built.returncode == 0, built.stderr[-2000:]
+    (wheel,) = dist.glob("pendsweep-*.whl")
+    installed = subprocess.run(
+        [*pip, "install", "--no-deps", "--target", str(site), str(wheel)], capture_output=True, text=True, timeout=300
+    )
+    assert installed.returncode == 0, installed.stderr[-2000:]
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PENDSWEEP_DATA")} | {"PYTHONPATH": str(site)}
+
+    def pendsweep(*args):
+        out = subprocess.run(
+            [sys.executable, "-m", "pendsweep.cli", *args],
+            cwd=work,
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=600,
+        )
+        assert out.returncode == 0, out.stdout + out.stderr
+        return out.stdout + out.stderr
+
+    where = subprocess.run(
+        [sys.executable, "-c", "import pendsweep; print(pendsweep.__file__)"],
+        cwd=work,
+        env=env,
+        capture_output=True,
+        text=True,
+    )
+    assert Path(where.stdout.strip()).is_relative_to(site)
+    assert "91 points (91 ok)" in pendsweep("run", "fig11a", "--no-progress")
+    assert "fig8.png" in pendsweep("figures", "fig8")
+    pendsweep("hopf", "--what", "1.1087", "--method", "analytic", "--no-progress")
+    assert "another configuration" in pendsweep(
+        "hopf", "--what", "1.0,1.05", "--method", "analytic,floquet", "--no-progress"
+    )
+    assert {p.name for p in (work / "results").rglob("*.p*")} == {
+        "fig11a.parquet",
+        "fig11a.png",
+        "fig8.png",
+        "hopf.parquet",
+    }
