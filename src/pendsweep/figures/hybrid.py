@@ -64,7 +64,7 @@ def fig9_hybrid(outdir: Path, quick: bool) -> list[Path]:
 
 
 def _hybrid_sweeps(name: str, quick: bool):
-    """The lead's ``sweeps/<name>.toml`` run with the emulated and the substructured backend.
+    """The built-in sweep ``<name>`` (``pendsweep run --list``) run with the emulated and the substructured backend.
 
     The substructured sweep skips values with ``M <= M2`` (no numerical mass left).
     """
