@@ -152,19 +152,29 @@ def _parse_metadata(meta: Any, name: str) -> tuple[str, ModelParams, float, dict
     kind = meta["kind"]
     if kind not in KINDS:
         raise ConfigError(f"{name}: unknown kind {kind!r}; accepted kinds: {', '.join(KINDS)}")
-    raw = dict(meta.get("params") or {})
-    tau = float(raw.pop("tau", 0.0))
+    raw = dict(_numbers(meta.get("params") or {}, "params", name))
+    tau = raw.pop("tau", 0.0)
     if not (math.isfinite(tau) and tau >= 0):
         raise ConfigError(f"{name}: tau = {tau!r} s must be finite and >= 0")
     try:
         params = ModelParams.from_mapping(raw)
     except ParameterError as exc:
         raise ConfigError(f"{name}: {exc}") from None
-    forcing = {k: float(v) for k, v in dict(meta.get("forcing") or {}).items()}
+    forcing = _numbers(meta.get("forcing") or {}, "forcing", name)
     unknown = set(forcing) - {"alpha", "fe"}
     if unknown:
         raise ConfigError(f"{name}: unknown forcing key(s) {', '.join(sorted(unknown))}; accepted: alpha, fe")
     return kind, params, tau, forcing
+
+
+def _numbers(table: Any, key: str, name: str) -> dict[str, float]:
+    """A metadata table of finite numbers (``params``, ``forcing``); anything else is a ConfigError naming it."""
+    if not isinstance(table, dict):
+        raise ConfigError(f"{name}: metadata {key!r} must be a JSON object of numbers, got {table!r}")
+    for k, v in table.items():
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise ConfigError(f"{name}: metadata {key}.{k} = {v!r} must be a finite number")
+    return {k: float(v) for k, v in table.items()}
 
 
 def _mismatched_csv(path: Path) -> None:
@@ -191,29 +201,39 @@ def read_record(path: str | Path) -> Record:
         raise ResultsError(f"no record file at {str(path)!r}")
     name = str(path)
     if path.suffix == ".parquet":
-        meta = read_metadata(path)
+        try:
+            meta = read_metadata(path)
+        except ValueError as exc:  # metadata that is not JSON
+            raise ConfigError(f"{name!r}: its pendsweep metadata is not valid JSON ({exc})") from None
         try:
             data = pq.read_table(path).to_pandas()
         except (OSError, pa.ArrowInvalid) as exc:
             raise ResultsError(f"cannot read {name!r} as parquet: {exc}") from None
     else:
+        try:
+            path.read_bytes().decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise ConfigError(f"{name!r} is not a text (UTF-8) file: byte {exc.start} is {exc.object[exc.start]:#04x}") from None
         with open(path) as fh:
             first = fh.readline()
         if first.startswith("trigger_start_deg"):
             return read_free_swing(path)
+        if not first.strip():
+            raise ConfigError(f"{name!r} is empty or has no header line; a record CSV starts with its column names")
         sidecar = path.with_suffix(".json")
         if not sidecar.is_file():
             raise ConfigError(f"{name!r} has no metadata sidecar {str(sidecar)!r}")
         try:
-            meta = json.loads(sidecar.read_text())
-        except json.JSONDecodeError as exc:
+            meta = json.loads(sidecar.read_bytes().decode("utf-8"))
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
             raise ConfigError(f"{str(sidecar)!r} is not valid JSON: {exc}") from None
         _mismatched_csv(path)
         try:
             data = pd.read_csv(path)
-        except (pd.errors.ParserError, UnicodeDecodeError) as exc:
+        except (pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
             raise ConfigError(f"cannot parse {name!r} as CSV: {exc}") from None
     kind, params, tau, forcing = _parse_metadata(meta, name)
+    validate(data, kind, name)  # before the float cast, so that text in a column is named, not a traceback
     return Record(data.astype({c: np.float64 for c in data.columns if c in UNITS}), kind, params, tau, forcing, name)
 
 

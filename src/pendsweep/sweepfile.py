@@ -29,6 +29,12 @@ SWEEPS_DIR = Path(__file__).resolve().parent / "sweeps"
 
 #: Largest number of grid values a range may produce (a typo like ``step = 1e-300`` is refused, not allocated).
 MAX_POINTS = 1_000_000
+#: Largest transient or recorded forcing-period count per point.
+MAX_PERIODS = 1_000_000
+#: Largest number of multistart initial conditions per point.
+MAX_STARTS = 100_000
+#: Largest initial angle magnitude [rad]: five turns (sin and cos of larger floats lose digits; angles wrap anyway).
+MAX_ANGLE = 10 * math.pi
 
 _INT_KEYS = {"transient_periods": 0, "record_periods": 1, "starts": 1, "seed": 0, "points": 1}
 _FLOAT_KEYS = {"from", "to", "step", "kick", "rest_threshold"}
@@ -107,6 +113,26 @@ def check_types(data: dict[str, Any], source: str) -> None:
             )
         for x in v:
             _number(source, "initial", x)
+    bounds = {  # the command line's bounds (pendsweep.cli._app), so a file cannot do what an option may not
+        "transient_periods": (0, MAX_PERIODS, ""),
+        "record_periods": (1, MAX_PERIODS, ""),
+        "starts": (1, MAX_STARTS, ""),
+        "kick": (0.0, math.pi, " rad"),
+        "rest_threshold": (0.0, math.pi, " rad"),
+    }
+    for key, (lo, hi, unit) in bounds.items():
+        if key in data and not lo <= data[key] <= hi:
+            raise ConfigError(
+                f"{source}: {key} = {data[key]!r}{unit} is outside the accepted range [{lo:g}, {hi:g}]{unit}"
+            )
+    if "initial" in data:
+        y, ydot, theta, thetadot = data["initial"]
+        for what, v, limit, unit in (("y", y, 10.0, "m"), ("ydot", ydot, 1e3, "m/s"),
+                                     ("theta", theta, MAX_ANGLE, "rad"), ("thetadot", thetadot, 1e3, "rad/s")):  # fmt: skip
+            if abs(v) > limit:
+                raise ConfigError(
+                    f"{source}: initial {what} = {v!r} {unit} is outside the accepted range [-{limit:g}, {limit:g}] {unit}"
+                )
     for table in ("model", "backend"):
         if table in data and not isinstance(data[table], dict):
             raise ConfigError(f"{source}: [{table}] must be a table, not {data[table]!r}")

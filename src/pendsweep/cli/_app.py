@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import click
 from click.core import ParameterSource
 
 from .._version import __version__
 from ..errors import PendsweepError
+from ..sweepfile import MAX_ANGLE, MAX_PERIODS
 
 
 class UsageFailure(click.ClickException):
@@ -79,7 +81,7 @@ class FiniteFloat(click.ParamType):
 
 FINITE = FiniteFloat()
 #: Initial angles: 5 turns either way (sin and cos of larger floats lose digits; angles wrap anyway).
-ANGLE = FiniteFloat(-10 * math.pi, 10 * math.pi, "rad")
+ANGLE = FiniteFloat(-MAX_ANGLE, MAX_ANGLE, "rad")
 #: Initial angular rates: far above anything the pendulum reaches (omega_p ~ 7 rad/s).
 RATE = FiniteFloat(-1e3, 1e3, "rad/s")
 #: Kicks and thresholds on angles.
@@ -89,7 +91,23 @@ STEP_S = FiniteFloat(1e-6, 1e-2, "s")
 #: Seeds of numpy's generators (non-negative, below 2**63).
 SEED = click.IntRange(0, 2**63 - 1)
 #: Forcing periods simulated per point.
-PERIODS = click.IntRange(0, 1_000_000)
+PERIODS = click.IntRange(0, MAX_PERIODS)
+
+
+class NonEmptyPath(click.ParamType):
+    """A file or folder name, refused when empty (click would turn `` into `.`), as :class:`pathlib.Path`."""
+
+    name = "path"
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, Path):
+            return value
+        if not str(value).strip():
+            self.fail(f"{value!r} is not a file name", param, ctx)
+        return Path(value)
+
+
+PATH = NonEmptyPath()
 
 
 def given(ctx: click.Context, name: str) -> bool:

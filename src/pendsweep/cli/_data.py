@@ -9,7 +9,7 @@ from pathlib import Path
 import click
 
 from ..errors import ConfigError
-from ._app import ANGLE, FINITE, RATE, SEED, FiniteFloat, main
+from ._app import ANGLE, FINITE, PATH, RATE, SEED, FiniteFloat, main
 from ._checks import check_input, check_output, check_output_dir
 
 
@@ -30,12 +30,12 @@ def _pairs(items: tuple[str, ...], what: str) -> dict[str, float]:
 
 
 @main.command()
-@click.argument("data", type=click.Path(path_type=Path))
-@click.option("--json", "json_out", type=click.Path(path_type=Path), help="Write the verdict JSON here (.json).")
+@click.argument("data", type=PATH)
+@click.option("--json", "json_out", type=PATH, help="Write the verdict JSON here (.json).")
 @click.option(
     "--report",
     "report_dir",
-    type=click.Path(path_type=Path),
+    type=PATH,
     help="Write report.md, figures and extended.json into this folder.",
 )
 @click.option(
@@ -63,7 +63,7 @@ def _pairs(items: tuple[str, ...], what: str) -> dict[str, float]:
 @click.option(
     "--model",
     "model_file",
-    type=click.Path(path_type=Path),
+    type=PATH,
     help="JSON of ModelParams fields replacing the record's nominal model (e.g. from fit-damping --params-out).",
 )
 def diagnose(data, json_out, report_dir, horizon, train_fraction, causes, jobs, model_file):
@@ -76,15 +76,15 @@ def diagnose(data, json_out, report_dir, horizon, train_fraction, causes, jobs, 
     from ..diagnose import Replay
     from ..diagnose import diagnose as run
     from ..diagnose.report import write_report
+    from ._sweep import load_model_file
 
     check_input(data, "record")
     check_output(json_out, "--json", (".json",))
     check_output_dir(report_dir, "--report")
+    model = load_model_file(model_file) if model_file is not None else None
     record = read_record(data)
-    if model_file is not None:
-        from ._sweep import load_model_file
-
-        record.params = record.params.replace(**load_model_file(model_file))
+    if model is not None:
+        record.params = record.params.replace(**model)
     diag = run(Replay(record, horizon, train_fraction), list(causes) or None, n_jobs=jobs)
     text = json.dumps(diag.to_json(), indent=1)
     if json_out:
@@ -96,7 +96,7 @@ def diagnose(data, json_out, report_dir, horizon, train_fraction, causes, jobs, 
 
 
 @main.command()
-@click.argument("out", type=click.Path(path_type=Path))
+@click.argument("out", type=PATH)
 @click.option(
     "--kind",
     type=click.Choice(["free_decay", "forced", "substructured"]),
@@ -198,11 +198,11 @@ def _one_of(new, old, new_name: str, old_name: str, default: float) -> float:
 
 
 @main.command("fit-damping")
-@click.argument("data", nargs=-1, required=True, type=click.Path(path_type=Path))
-@click.option("--json", "json_out", type=click.Path(path_type=Path), help="Write the results JSON here (.json).")
+@click.argument("data", nargs=-1, required=True, type=PATH)
+@click.option("--json", "json_out", type=PATH, help="Write the results JSON here (.json).")
 @click.option(
     "--params-out",
-    type=click.Path(path_type=Path),
+    type=PATH,
     help="Write the fitted model as a ModelParams JSON (l = L, b_i = beta_i m L^2).",
 )
 @click.option(
@@ -220,7 +220,7 @@ def _one_of(new, old, new_name: str, old_name: str, default: float) -> float:
 )
 @click.option(
     "--plot",
-    type=click.Path(path_type=Path),
+    type=PATH,
     help="Write a figure of measured and simulated envelopes (.png/.pdf/.svg).",
 )
 def fit_damping(data, json_out, params_out, mass, skip, plot):

@@ -12,7 +12,7 @@ from ..backends import BACKENDS
 from ..errors import ConfigError
 from ..hopf import METHODS
 from ..sweepfile import MAX_POINTS
-from ._app import FiniteFloat, main
+from ._app import PATH, FiniteFloat, main
 from ._checks import check_output, key_values, model_sets
 from ._executor import apply_options, executor_options
 from ._sweep import replace_other_configuration
@@ -26,17 +26,18 @@ def parse_values(text: str, what: str) -> tuple[float, ...]:
     """``FROM:TO:N`` (N points, ends included), ``A,B,C`` or a single value."""
     from ..sweep import value_range
 
+    accepted = "give FROM:TO:N (N points), a comma list A,B,C or a single number"
     try:
         if ":" in text:
             start, stop, count = text.split(":")
-            if not 1 <= int(count) <= MAX_POINTS:
-                raise ConfigError(f"{what} = {text!r}: N = {count} must be between 1 and {MAX_POINTS}")
-            return tuple(float(v) for v in value_range(float(start), float(stop), points=int(count)))
-        return tuple(float(v) for v in text.split(","))
+            bounds, n = (float(start), float(stop)), int(count)
+        else:
+            return tuple(float(v) for v in text.split(","))
     except ValueError:
-        raise ConfigError(
-            f"{what} = {text!r}: give FROM:TO:N (N points), a comma list A,B,C or a single number"
-        ) from None
+        raise ConfigError(f"{what} = {text!r}: {accepted}") from None
+    if not 1 <= n <= MAX_POINTS:
+        raise ConfigError(f"{what} = {text!r}: N = {n} must be between 1 and {MAX_POINTS}")
+    return tuple(float(v) for v in value_range(*bounds, points=n))
 
 
 @main.command()
@@ -116,7 +117,7 @@ def parse_values(text: str, what: str) -> tuple[float, ...]:
 @click.option(
     "-o",
     "--output",
-    type=click.Path(path_type=Path),
+    type=PATH,
     default=None,
     help="Results file, .parquet (resumable; default results/hopf.parquet, replaced when it holds another scan).",
 )

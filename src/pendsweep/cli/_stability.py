@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from pathlib import Path
 
 import click
 
@@ -18,7 +17,7 @@ from ..stability import (
     sampled_delay_margin,
     spectral_abscissa,
 )
-from ._app import STEP_S, FiniteFloat, UsageFailure, main
+from ._app import PATH, STEP_S, FiniteFloat, UsageFailure, main
 from ._checks import FIGURE_SUFFIXES, check_output
 
 _RIG = LoopParams.from_model(TABLE_IV)
@@ -154,7 +153,7 @@ def _pair(text: str | None, name: str, cast) -> tuple | None:
 @click.option("--table2", is_flag=True, help="Print Table II (ours next to the paper's two rows) and stop.")
 @click.option(
     "--plot",
-    type=click.Path(path_type=Path),
+    type=PATH,
     default=None,
     help="Write a Bode diagram with the margins (.png/.pdf/.svg).",
 )

@@ -11,7 +11,7 @@ from ..errors import ConfigError
 from ..hybrid import read_trace, run_trace, write_trace
 from ..params import ModelParams
 from ..sync import TABLE_I, analyse
-from ._app import ANGLE, FINITE, RATE, FiniteFloat, main
+from ._app import ANGLE, FINITE, PATH, RATE, FiniteFloat, main
 from ._checks import FIGURE_SUFFIXES, check_input, check_output, key_values, model_sets
 
 
@@ -26,7 +26,7 @@ def _model(alpha, fe, M, C, sets) -> ModelParams:
 
 
 @main.command("trace")
-@click.argument("output", type=click.Path(path_type=Path))
+@click.argument("output", type=PATH)
 @click.option("--alpha", type=FINITE, default=None, help="Forcing amplitude [N] (default 5, Fig. 9 PO).")
 @click.option("--fe", type=FINITE, default=None, help="Forcing frequency [Hz] (default 2.2).")
 @click.option("--M", "M_", type=FINITE, default=None, help="Oscillator mass M = M1 + M2 [kg] (default 10.9).")
@@ -118,11 +118,11 @@ def trace_command(
 
 
 @main.command("sync")
-@click.argument("trace", type=click.Path(path_type=Path))
+@click.argument("trace", type=PATH)
 @click.option(
     "-o",
     "--output",
-    type=click.Path(path_type=Path),
+    type=PATH,
     default=None,
     help="Figure file, .png/.pdf/.svg (default: TRACE with .png).",
 )

@@ -15,8 +15,8 @@ from ..backends import BACKENDS
 from ..errors import ConfigError, ParameterError, PendsweepError
 from ..params import PARAM_SPECS, ModelParams
 from ..sweep import DIRECTIONS, MODES
-from ..sweepfile import MAX_POINTS, grid_size
-from ._app import ANGLE, FINITE, PERIODS, RATE, SEED, SMALL_ANGLE, STEP_S, given, main
+from ..sweepfile import MAX_POINTS, MAX_STARTS, grid_size
+from ._app import ANGLE, FINITE, PATH, PERIODS, RATE, SEED, SMALL_ANGLE, STEP_S, given, main
 from ._checks import FIGURE_SUFFIXES, check_input, check_output, check_output_dir, key_values, model_sets
 from ._executor import apply_options, executor_options
 
@@ -176,7 +176,7 @@ def sweep_options(default_step: float, unit: str):
             ),
             click.option(
                 "--starts",
-                type=click.IntRange(1, 100_000),
+                type=click.IntRange(1, MAX_STARTS),
                 default=8,
                 show_default=True,
                 help="Initial conditions per point (multistart mode only).",
@@ -196,7 +196,7 @@ def sweep_options(default_step: float, unit: str):
             click.option(
                 "-o",
                 "--output",
-                type=click.Path(path_type=Path),
+                type=PATH,
                 default=None,
                 help="Results file, .parquet (default results/<parameter>.parquet, replaced when it holds another configuration).",
             ),
@@ -204,7 +204,7 @@ def sweep_options(default_step: float, unit: str):
             click.option(
                 "--plot",
                 "plot_path",
-                type=click.Path(path_type=Path),
+                type=PATH,
                 default=None,
                 help="Also draw the bifurcation diagram here (.png/.pdf/.svg).",
             ),
@@ -448,12 +448,12 @@ def _list_builtin() -> None:
 
 
 @main.command("run")
-@click.argument("definition", required=False, type=click.Path(path_type=Path))
+@click.argument("definition", required=False, type=PATH)
 @click.option("--list", "list_builtin", is_flag=True, help="List the built-in sweep definitions and stop.")
 @click.option(
     "-o",
     "--output",
-    type=click.Path(path_type=Path),
+    type=PATH,
     default=None,
     help="Results file, .parquet (default: the definition's `output`).",
 )
@@ -503,11 +503,11 @@ def run_definition(definition, list_builtin, output, do_plot, jobs, overwrite, p
 
 
 @main.command("plot", short_help="Draw a Fig. 11-style bifurcation diagram.")
-@click.argument("results", nargs=-1, required=True, type=click.Path(path_type=Path))
+@click.argument("results", nargs=-1, required=True, type=PATH)
 @click.option(
     "-o",
     "--output",
-    type=click.Path(path_type=Path),
+    type=PATH,
     default=None,
     help="Figure file, .png/.pdf/.svg (default: first input with .png).",
 )
@@ -538,13 +538,11 @@ def plot_command(results, output, observable, title):
     "-o",
     "--output",
     "outdir",
-    type=click.Path(path_type=Path),
+    type=PATH,
     default=None,
     help="Output folder [default: results/figures].",
 )
-@click.option(
-    "--out", "outdir_old", type=click.Path(path_type=Path), default=None, hidden=True, deprecated="use -o/--output"
-)
+@click.option("--out", "outdir_old", type=PATH, default=None, hidden=True, deprecated="use -o/--output")
 @click.option("--quick", is_flag=True, help="Small, fast versions (smoke test).")
 def figures_command(names, outdir, outdir_old, quick):
     """Regenerate the paper's figures (all, or the NAMES given; e.g. pendsweep figures fig8 fig9)."""
