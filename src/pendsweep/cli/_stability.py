@@ -113,7 +113,7 @@ def _pair(text: str | None, name: str, cast) -> tuple | None:
     "--tau-hat",
     default=None,
     metavar="SECONDS|matched",
-    help="Prediction horizon [s]; 'matched' sets it equal to the transport delay (default 0.018, the paper's).",
+    help="Prediction horizon [s]; 'matched' sets it to the total effective delay of the actuator at --filter-frequency (the transport delay for --actuator delay) (default 0.018 s, the paper's).",
 )
 @click.option(
     "--filter-band",
@@ -240,5 +240,5 @@ def margin(M1, C1, K, ms, C2, actuator, dt, servo_bandwidth, servo_damping, pred
 
 
 def _describe(cfg: SampledLoop) -> str:
-    horizon = "tau_hat = tau" if cfg.tau_hat is None else f"tau_hat = {cfg.tau_hat:g} s"
+    horizon = "tau_hat matched to the effective delay" if cfg.tau_hat is None else f"tau_hat = {cfg.tau_hat:g} s"
     return f"predictor n = {cfg.predictor_order}, N = {cfg.predictor_points}, {horizon}"
