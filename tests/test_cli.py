@@ -217,3 +217,24 @@ def test_installed_wheel_runs_from_an_empty_folder(tmp_path):
         "fig8.png",
         "hopf.parquet",
     }
+
+
+def test_corrupt_results_file_is_a_runtime_failure(tmp_path, monkeypatch):
+    """Bad input exits 2; a results file that exists but cannot be read back exits 1 (one line, no traceback)."""
+    monkeypatch.chdir(tmp_path)
+    corrupt = tmp_path / "c.parquet"
+    corrupt.write_bytes(b"PAR1 not really")
+    for args in (
+        ["alpha", "--from", 0, "--to", 1, *FAST, "-o", corrupt],
+        ["hopf", "--what", "1.1", "--method", "analytic", "-o", corrupt],
+    ):
+        r = invoke(*args)
+        assert r.exit_code == 1, r.output
+        assert "c.parquet" in r.output and "cannot be read back" in r.output and r.output.count("\n") == 1
+    # at the default path the unreadable file is replaced with a note, and --overwrite replaces it anywhere
+    (tmp_path / "results").mkdir()
+    (tmp_path / "results" / "hopf.parquet").write_bytes(b"garbage")
+    r = invoke("hopf", "--what", "1.1", "--method", "analytic", "--no-progress")
+    assert r.exit_code == 0 and "note: results/hopf.parquet held results of another configuration" in r.output
+    r = invoke("hopf", "--what", "1.1", "--method", "analytic", "--no-progress", "-o", corrupt, "--overwrite")
+    assert r.exit_code == 0, r.output

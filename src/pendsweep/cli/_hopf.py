@@ -15,7 +15,7 @@ from ..sweepfile import MAX_POINTS
 from ._app import PATH, FiniteFloat, main
 from ._checks import check_output, key_values, model_sets
 from ._executor import apply_options, executor_options
-from ._sweep import replace_other_configuration
+from ._sweep import prepare_output
 
 #: Model parameters the scan itself sets: alpha is searched, fe follows --what, M is --M.
 SCANNED = {"alpha": "the searched amplitude", "fe": "set by --what (fe = omega_hat w_p / pi)", "M": "set by --M"}
@@ -169,9 +169,9 @@ def hopf(
         backend_options=key_values(backend_options, "--backend-option"),
         kick=kick, periods=periods, tol=tol, alpha_max=alpha_max,
     )  # fmt: skip
-    if output is None:
-        output = DEFAULT_OUTPUT
-        overwrite = overwrite or replace_other_configuration(output, hopf_metadata(config)["config_hash"])
+    default = output is None
+    output = DEFAULT_OUTPUT if default else output
+    overwrite = prepare_output(output, hopf_metadata(config)["config_hash"], default=default, overwrite=overwrite)
     progress = sys.stderr.isatty() if progress is None else progress
     runner = make_executor(executor, scheduler)
     try:

@@ -293,24 +293,30 @@ def build_config(parameter: str, default_step: float, kw: dict[str, Any], ctx: c
     )
 
 
-def replace_other_configuration(output: Path, config_hash: str) -> bool:
-    """For a *default* output path: True when it holds finished results of another configuration.
+def prepare_output(output: Path, config_hash: str, *, default: bool, overwrite: bool) -> bool:
+    """Decide what to do with results already at ``output``; returns the ``overwrite`` to run with.
 
-    A default path is shared by every query of one kind (``results/alpha.parquet``,
-    ``results/hopf.parquet``): a second, different query replaces the finished
-    file of the first with a one-line note instead of failing. The same
-    configuration resumes as usual; an explicit ``-o`` is never replaced
-    without ``--overwrite``.
+    A *default* path is shared by every query of one kind (``results/alpha.parquet``,
+    ``results/hopf.parquet``): finished results of another configuration there
+    are replaced with a one-line note instead of failing a second, different
+    query. The same configuration resumes (or is reused) as usual. An explicit
+    ``-o`` is never replaced without ``--overwrite``; when it holds a file that
+    cannot be read back as results, that is a runtime failure (exit 1).
     """
+    from ..errors import CorruptResultsError
     from ..results import read_metadata
 
-    if not output.is_file():
-        return False
+    if overwrite or not output.is_file():
+        return overwrite
     try:
         held = read_metadata(output).get("config_hash")
-    except (PendsweepError, ValueError):
+    except (PendsweepError, ValueError, AttributeError) as exc:
+        if not default:
+            raise CorruptResultsError(
+                f"{str(output)!r} exists but cannot be read back as results ({exc}); pass --overwrite to replace it"
+            ) from None
         held = None
-    if held == config_hash:
+    if held == config_hash or not default:
         return False
     click.echo(f"note: {output} held results of another configuration; replacing them (give -o to keep both)", err=True)
     return True
@@ -341,8 +347,9 @@ def execute(
     check_output(plot_path, "--plot", FIGURE_SUFFIXES)
     if progress is None:
         progress = sys.stderr.isatty()
-    if default_output and not overwrite:
-        overwrite = replace_other_configuration(output, sweep_metadata(config)["config_hash"])
+    overwrite = prepare_output(
+        output, sweep_metadata(config)["config_hash"], default=default_output, overwrite=overwrite
+    )
     if output.exists() and not overwrite:
         click.echo(f"{output} exists: reusing it if its configuration matches (--overwrite recomputes)")
     t0 = time.perf_counter()
