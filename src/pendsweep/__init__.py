@@ -4,11 +4,38 @@ Implements Gonzalez-Buelga, Wagg & Neild (2007), "Parametric variation of a
 coupled pendulum-oscillator system using real-time dynamic substructuring".
 """
 
+import importlib
+
 from ._version import __version__
-from .backends import BACKENDS, make_backend
 from .errors import ConfigError, ParameterError, PendsweepError, ResultsError
-from .params import FIG8, FIG9_CO, FIG9_PO, FIG11A, FIG11B, TABLE_IV, ModelParams
-from .status import Status
+
+# Exports from modules that pull in numpy, pandas, scipy or the numba kernels are
+# imported on first use (PEP 562), so that `pendsweep --help` starts in a blink.
+_LAZY = {
+    "BACKENDS": ".backends",
+    "make_backend": ".backends",
+    "FIG8": ".params",
+    "FIG9_CO": ".params",
+    "FIG9_PO": ".params",
+    "FIG11A": ".params",
+    "FIG11B": ".params",
+    "TABLE_IV": ".params",
+    "ModelParams": ".params",
+    "Status": ".status",
+}
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        value = getattr(importlib.import_module(_LAZY[name], __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))
+
 
 __all__ = [
     "BACKENDS",

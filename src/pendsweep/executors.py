@@ -25,8 +25,6 @@ import queue
 import threading
 from typing import Any, Callable, Iterable, Iterator, Protocol
 
-from joblib import Parallel, delayed
-
 from .errors import ConfigError
 
 Task = Callable[[], Iterable[Any]]
@@ -56,6 +54,8 @@ class LocalExecutor:
             for task in tasks:
                 yield from task()
             return
+        from joblib import Parallel, delayed  # imported on first parallel use: joblib costs ~0.2 s at start-up
+
         items: queue.Queue = queue.Queue()
         done_marker = object()
 

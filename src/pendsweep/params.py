@@ -16,11 +16,12 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass, field
-from typing import Any, Mapping
-
-import numpy as np
+from typing import TYPE_CHECKING, Any, Mapping
 
 from .errors import ParameterError
+
+if TYPE_CHECKING:
+    import numpy as np
 
 __all__ = [
     "ENCODER_RESOLUTION",
@@ -223,6 +224,8 @@ KERNEL_FIELDS: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(ModelP
 
 def kernel_vector(values: Mapping[str, float]) -> np.ndarray:
     """Contiguous float64 kernel parameter vector from a mapping holding every :data:`KERNEL_FIELDS` name."""
+    import numpy as np  # imported here so that reading parameters (`pendsweep --help`) does not load numpy
+
     return np.array([values[name] for name in KERNEL_FIELDS], dtype=np.float64)
 
 

@@ -94,6 +94,32 @@ SEED = click.IntRange(0, 2**63 - 1)
 PERIODS = click.IntRange(0, MAX_PERIODS)
 
 
+class LazyChoice(click.Choice):
+    """A :class:`click.Choice` whose choices are loaded on first use (e.g. the backend registry).
+
+    Building the command line then imports no simulation code: ``pendsweep
+    --help`` stays fast, and a subcommand loads what it needs when it runs.
+
+    Parameters
+    ----------
+    module : str
+        Module (relative to ``pendsweep``) holding the choices, e.g. ``".backends"``.
+    attribute : str
+        Name of the iterable of choices in it (sorted for display).
+    """
+
+    def __init__(self, module: str, attribute: str) -> None:  # click.Choice.__init__ would load them now
+        self._source = (module, attribute)
+        self.case_sensitive = True
+
+    @property
+    def choices(self) -> tuple[str, ...]:
+        import importlib
+
+        module, attribute = self._source
+        return tuple(sorted(getattr(importlib.import_module(module, "pendsweep"), attribute)))
+
+
 class NonEmptyPath(click.ParamType):
     """A file or folder name, refused when empty (click would turn `` into `.`), as :class:`pathlib.Path`."""
 

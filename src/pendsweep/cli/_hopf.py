@@ -8,11 +8,9 @@ from pathlib import Path
 
 import click
 
-from ..backends import BACKENDS
 from ..errors import ConfigError
-from ..hopf import METHODS
 from ..sweepfile import MAX_POINTS
-from ._app import PATH, FiniteFloat, main
+from ._app import PATH, FiniteFloat, LazyChoice, main
 from ._checks import check_output, key_values, model_sets
 from ._executor import apply_options, executor_options
 from ._sweep import prepare_output
@@ -40,6 +38,12 @@ def parse_values(text: str, what: str) -> tuple[float, ...]:
     return tuple(float(v) for v in value_range(*bounds, points=n))
 
 
+def _all_methods() -> str:
+    from ..hopf import METHODS
+
+    return ",".join(METHODS)
+
+
 @main.command()
 @click.option(
     "--what",
@@ -59,14 +63,14 @@ def parse_values(text: str, what: str) -> tuple[float, ...]:
 @click.option(
     "--method",
     "methods",
-    default=",".join(METHODS),
-    show_default=True,
+    default=_all_methods,
+    show_default="analytic,floquet,simulate",
     metavar="LIST",
     help="Methods, comma separated: analytic (Eq. 12), floquet (Mathieu monodromy), simulate (kick + bisection).",
 )
 @click.option(
     "--backend",
-    type=click.Choice(sorted(BACKENDS)),
+    type=LazyChoice(".backends", "BACKENDS"),
     default="emulated",
     show_default=True,
     help="Backend of the simulate method.",

@@ -8,15 +8,6 @@ import math
 import click
 
 from ..params import TABLE_IV, LoopParams
-from ..stability import (
-    SampledLoop,
-    delay_margin,
-    format_crossings,
-    format_table_ii,
-    rightmost_roots,
-    sampled_delay_margin,
-    spectral_abscissa,
-)
 from ._app import PATH, STEP_S, FiniteFloat, UsageFailure, main
 from ._checks import FIGURE_SUFFIXES, check_output
 
@@ -168,6 +159,16 @@ def margin(M1, C1, K, ms, C2, actuator, dt, servo_bandwidth, servo_damping, pred
     runs it (sampled at dt, servo or delay actuator, optional predictor and
     force filter): the critical transport delay without and with compensation.
     """
+    from ..stability import (
+        SampledLoop,
+        delay_margin,
+        format_crossings,
+        format_table_ii,
+        rightmost_roots,
+        sampled_delay_margin,
+        spectral_abscissa,
+    )
+
     check_output(plot, "--plot", FIGURE_SUFFIXES)
     if table2:
         click.echo(format_table_ii())
@@ -239,6 +240,7 @@ def margin(M1, C1, K, ms, C2, actuator, dt, servo_bandwidth, servo_damping, pred
         click.echo(f"wrote {plot}")
 
 
-def _describe(cfg: SampledLoop) -> str:
+def _describe(cfg) -> str:
+    """One line naming a :class:`~pendsweep.stability.SampledLoop`'s predictor."""
     horizon = "tau_hat matched to the effective delay" if cfg.tau_hat is None else f"tau_hat = {cfg.tau_hat:g} s"
     return f"predictor n = {cfg.predictor_order}, N = {cfg.predictor_points}, {horizon}"

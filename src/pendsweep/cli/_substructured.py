@@ -6,12 +6,9 @@ from pathlib import Path
 
 import click
 
-from ..backends import BACKENDS, make_backend
 from ..errors import ConfigError
-from ..hybrid import read_trace, run_trace, write_trace
 from ..params import ModelParams
-from ..sync import TABLE_I, analyse
-from ._app import ANGLE, FINITE, PATH, RATE, FiniteFloat, main
+from ._app import ANGLE, FINITE, PATH, RATE, FiniteFloat, LazyChoice, main
 from ._checks import FIGURE_SUFFIXES, check_input, check_output, key_values, model_sets
 
 
@@ -40,7 +37,7 @@ def _model(alpha, fe, M, C, sets) -> ModelParams:
 )
 @click.option(
     "--backend",
-    type=click.Choice(sorted(BACKENDS)),
+    type=LazyChoice(".backends", "BACKENDS"),
     default="substructured",
     show_default=True,
     help="Simulation backend.",
@@ -96,6 +93,9 @@ def trace_command(
     theta (encoder, theta_x), theta_true, thetadot, Fs (load cell), Fs_true,
     F_fb (force fed to the model), sync_error (y* - x_meas).
     """
+    from ..backends import make_backend
+    from ..hybrid import run_trace, write_trace
+
     check_output(output, "OUTPUT", (".parquet",))
     params = _model(alpha, fe, M_, C_, sets)
     b = make_backend(backend, **key_values(backend_opts, "--backend-option"))
@@ -127,7 +127,7 @@ def trace_command(
     help="Figure file, .png/.pdf/.svg (default: TRACE with .png).",
 )
 @click.option(
-    "--reference", type=click.Choice(sorted(TABLE_I)), default=None, help="Also print the paper's Table I row."
+    "--reference", type=LazyChoice(".sync", "TABLE_I"), default=None, help="Also print the paper's Table I row."
 )
 @click.option(
     "--window",
@@ -143,6 +143,8 @@ def sync_command(trace, output, reference, window):
     estimate, and writes the estimate's time series next to the figure.
     """
     from ..figures.hybrid import draw_sync
+    from ..hybrid import read_trace
+    from ..sync import analyse
 
     check_input(trace, "trace")
     path = check_output(output or Path(trace).with_suffix(".png"), "-o/--output", FIGURE_SUFFIXES)

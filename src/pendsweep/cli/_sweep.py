@@ -11,12 +11,10 @@ from typing import Any
 
 import click
 
-from ..backends import BACKENDS
 from ..errors import ConfigError, ParameterError, PendsweepError
 from ..params import PARAM_SPECS, ModelParams
-from ..sweep import DIRECTIONS, MODES
 from ..sweepfile import MAX_POINTS, MAX_STARTS, grid_size
-from ._app import ANGLE, FINITE, PATH, PERIODS, RATE, SEED, SMALL_ANGLE, STEP_S, given, main
+from ._app import ANGLE, FINITE, PATH, PERIODS, RATE, SEED, SMALL_ANGLE, STEP_S, LazyChoice, given, main
 from ._checks import FIGURE_SUFFIXES, check_input, check_output, check_output_dir, key_values, model_sets
 from ._executor import apply_options, executor_options
 
@@ -99,21 +97,21 @@ def sweep_options(default_step: float, unit: str):
             ),
             click.option(
                 "--mode",
-                type=click.Choice(MODES),
+                type=LazyChoice(".sweep", "MODES"),
                 default="continue",
                 show_default=True,
                 help="continue: carry the state (kick 0.1 rad when at rest); fresh: same start every point; multistart: --starts seeded starts per point.",
             ),
             click.option(
                 "--direction",
-                type=click.Choice(DIRECTIONS),
+                type=LazyChoice(".sweep", "DIRECTIONS"),
                 default="up",
                 show_default=True,
                 help="Traversal of continue branches; both exposes hysteresis (continue mode only).",
             ),
             click.option(
                 "--backend",
-                type=click.Choice(sorted(BACKENDS)),
+                type=LazyChoice(".backends", "BACKENDS"),
                 default="emulated",
                 show_default=True,
                 help="Simulation backend.",
