@@ -238,3 +238,20 @@ def test_corrupt_results_file_is_a_runtime_failure(tmp_path, monkeypatch):
     assert r.exit_code == 0 and "note: results/hopf.parquet held results of another configuration" in r.output
     r = invoke("hopf", "--what", "1.1", "--method", "analytic", "--no-progress", "-o", corrupt, "--overwrite")
     assert r.exit_code == 0, r.output
+
+
+def test_help_imports_no_numerical_stack():
+    """`pendsweep --help` (and building every command) loads no numpy, pandas, scipy, numba, matplotlib or joblib.
+
+    Start-up time itself is measured, not asserted (see the report in the README);
+    this checks the cause: the heavy modules stay unimported until a command runs.
+    """
+    heavy = ("numpy", "pandas", "pyarrow", "scipy", "numba", "matplotlib", "joblib")
+    code = (
+        "import sys; from click.testing import CliRunner; from pendsweep.cli import main; "
+        "r = CliRunner().invoke(main, ['--help']); assert r.exit_code == 0, r.output; "
+        f"print(sorted(m for m in {heavy!r} if m in sys.modules))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "[]"
