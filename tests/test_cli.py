@@ -255,3 +255,20 @@ def test_help_imports_no_numerical_stack():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "[]"
+
+
+def test_measured_data_locator(tmp_path, monkeypatch):
+    """$PENDSWEEP_DATA, else shared/data above the current folder; None (and a note from `figures`) when absent."""
+    from pendsweep.data import DATA_ENV, find_free_swing_data
+
+    records = tmp_path / "shared" / "data" / "measured" / "free-swing-rotary-pendulum"
+    records.mkdir(parents=True)
+    monkeypatch.setenv(DATA_ENV, str(tmp_path / "shared" / "data"))
+    assert find_free_swing_data() == records
+    monkeypatch.setenv(DATA_ENV, str(tmp_path / "nowhere"))
+    assert find_free_swing_data() is None
+    r = invoke("figures", "free_swing_damping", "-o", tmp_path / "figs")
+    assert r.exit_code == 0 and "skipped, its measured data were not found (set PENDSWEEP_DATA" in r.output
+    monkeypatch.delenv(DATA_ENV)
+    monkeypatch.chdir(records.parent)  # a folder below shared/data/measured: found by walking up
+    assert find_free_swing_data() == records
