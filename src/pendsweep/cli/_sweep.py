@@ -250,11 +250,13 @@ def plot_command(results, output, observable, title):
     """Draw a Fig. 11-style bifurcation diagram of one or more result files.
 
     Overlaying up, down and multistart files shows hysteresis and coexisting attractors.
+    Continuation results (.json from `pendsweep continue`) are drawn on top as branches:
+    solid stable, dashed unstable, markers at bifurcations.
     """
-    from ..plotting import plot_files
+    from ..continuation.overlay import plot_any
 
     output = output or Path(results[0]).with_suffix(".png")
-    click.echo(f"plot -> {plot_files(list(results), output, observable, title)}")
+    click.echo(f"plot -> {plot_any(list(results), output, observable, title)}")
 
 
 @main.command("figures")

@@ -54,6 +54,8 @@ from ..errors import PendsweepError
 FOLD = "fold"
 PERIOD_DOUBLING = "period-doubling"
 NEIMARK_SACKER = "neimark-sacker"
+#: Why a doubled branch ends: it has shrunk onto the orbit of half its period.
+REACHED = "reached its period doubling"
 
 
 class MapProblem(Protocol):
@@ -75,7 +77,10 @@ class MapProblem(Protocol):
     period: int
 
     def evaluate(self, x: np.ndarray, lam: float, tangent: bool = True) -> "Evaluation":
-        """``G(x, lam) = P(x; lam) - x`` and ``dP/dx`` (when ``tangent``); may raise PendsweepError."""
+        """``G(x, lam) = P(x; lam) - x`` and ``dP/dx`` (when ``tangent``).
+
+        May raise :class:`EvaluationFailed` or a ParameterError (``lam`` out of range).
+        """
 
     def with_period(self, period: int) -> "MapProblem":
         """The same system over ``period`` applications of the one-period map."""
@@ -196,8 +201,16 @@ class Result:
     bifurcations: list[Bifurcation]
 
 
-class ContinuationError(PendsweepError):
-    """A continuation cannot start (no convergence at the starting point)."""
+class ContinuationError(RuntimeError):
+    """A continuation cannot start (no convergence at the starting point): a runtime failure, exit 1."""
+
+
+class EvaluationFailed(Exception):
+    """A problem could not evaluate its map (e.g. a diverged orbit); the step is retried smaller."""
+
+
+#: What a failed trial step may raise: the parameter left its range, or the map failed.
+_STEP_FAILURES = (PendsweepError, EvaluationFailed)
 
 
 # -- linear algebra in scaled variables ------------------------------------------
@@ -320,7 +333,7 @@ class Continuation:
 
         try:
             u, ok, updates = newton(fun, u_pred, self.settings.newton_tol, self.settings.max_iterations)
-        except PendsweepError:  # parameter left its physical range
+        except _STEP_FAILURES:
             return u_pred, False, self.settings.max_iterations
         return u, ok, len(updates)
 
@@ -359,7 +372,7 @@ class Continuation:
                     return points, "range"
                 try:
                     new = self.make_point(scaled, u, prev.tangent)
-                except PendsweepError:
+                except _STEP_FAILURES:
                     ok = False
             if ok and math.acos(min(1.0, float(new.tangent @ prev.tangent))) > st.max_turn and ds > st.ds_min:
                 ok = False
@@ -389,7 +402,7 @@ class Continuation:
         try:
             x, ok, _ = self.correct_fixed(scaled, x_guess, edge)
             return self.make_point(scaled, scaled.pack(x, edge), prev.tangent) if ok else None
-        except PendsweepError:
+        except _STEP_FAILURES:
             return None
 
     # .. events ..
@@ -403,6 +416,9 @@ class Continuation:
         """
         f_prev, f_new = test_functions(prev.multipliers), test_functions(new.multipliers)
         lam_turns = np.sign(prev.tangent[-1]) != np.sign(new.tangent[-1])
+        merge = self._merge_point(scaled, prev, new, branch, found, ds, lam_turns)
+        if merge is not None:
+            return [merge], REACHED
         events = []
         for kind in (FOLD, PERIOD_DOUBLING, NEIMARK_SACKER):
             if np.sign(f_prev[kind]) != np.sign(f_new[kind]) or (kind == FOLD and lam_turns):
@@ -415,7 +431,7 @@ class Continuation:
             s, point = s_point
             distance = scaled.problem.subperiod_distance(point.x, point.info)
             if distance < 1e-6:
-                return [p for _, p in sorted(located, key=lambda e: e[0])] + [point], "reached its period doubling"
+                return [p for _, p in sorted(located, key=lambda e: e[0])] + [point], REACHED
             if kind == FOLD and not lam_turns:
                 continue  # a branch point (det(P' - I) = 0 without a turn), not a fold
             if kind == NEIMARK_SACKER and not self._complex_on_circle(point.multipliers):
@@ -427,6 +443,32 @@ class Continuation:
             found.append(Bifurcation(kind, point.lam, branch, point.x, point.multipliers, vector))
             located.append((s, point))
         return [p for _, p in sorted(located, key=lambda e: e[0])], None
+
+    def _merge_point(self, scaled, prev: Point, new: Point, branch: int, found: list[Bifurcation], ds: float,
+                     lam_turns: bool) -> Point | None:
+        """The period doubling where a doubled branch ends, if it ends between ``prev`` and ``new``.
+
+        A doubled branch meets the orbit of half its period at a period
+        doubling of that orbit, where it turns back in the parameter (the
+        vertex of the pitchfork of ``P^2k``) or where the corrector lands on
+        the half-period orbit itself. The corrector cannot converge at the
+        vertex (a branch point), so the meeting point is recognised as a
+        known period doubling of the parent within two steps of both points.
+        """
+        if scaled.problem.period == 1:
+            return None
+        on_parent = scaled.problem.subperiod_distance(new.x, new.info) < 1e-6
+        if not (lam_turns or on_parent):
+            return None
+        u_prev, u_new = scaled.pack(prev.x, prev.lam), scaled.pack(new.x, new.lam)
+        for index, bif in enumerate(found):
+            if (bif.kind != PERIOD_DOUBLING or index == self._origins.get(branch)
+                    or self._periods[bif.branch] * 2 != scaled.problem.period):
+                continue
+            u_pd = scaled.pack(bif.x, bif.lam)
+            if max(np.linalg.norm(u_pd - u_prev), np.linalg.norm(u_pd - u_new)) <= 2.0 * ds:
+                return self.make_point(scaled, u_pd, prev.tangent)
+        return None
 
     @staticmethod
     def _complex_on_circle(mu: np.ndarray) -> bool:
@@ -462,7 +504,7 @@ class Continuation:
                 return None
             try:
                 best = self.make_point(scaled, u, prev.tangent)
-            except PendsweepError:
+            except _STEP_FAILURES:
                 return None
             f = value(best)
             if f == 0.0:
@@ -482,7 +524,10 @@ class Continuation:
     # .. start, both directions, branch switching ..
     def start(self, scaled: _Scaled, x0: np.ndarray, lam0: float) -> Point:
         """Newton at fixed ``lam0`` from ``x0``; the tangent points towards larger parameter."""
-        x, ok, updates = self.correct_fixed(scaled, x0, lam0)
+        try:
+            x, ok, updates = self.correct_fixed(scaled, x0, lam0)
+        except EvaluationFailed as exc:
+            raise ContinuationError(f"the start orbit cannot be integrated: {exc}") from None
         if not ok:
             raise ContinuationError(
                 f"Newton did not converge at the start ({scaled.problem.period}-period orbit, parameter {lam0:g}); "
@@ -502,6 +547,8 @@ class Continuation:
     def run(self, x0: np.ndarray, lam0: float) -> Result:
         """Start at ``(x0, lam0)``, continue both ways, switch at period doublings up to ``max_period``."""
         found: list[Bifurcation] = []
+        self._periods = [self.problem.period]  # per branch index
+        self._origins: dict[int, int] = {}  # branch index -> index in found of its period doubling
         scaled = _Scaled(self.problem, self.settings)
         branches = [self.branch_both_ways(scaled, self.start(scaled, x0, lam0), 0, found)]
         problems = [self.problem]
@@ -512,7 +559,11 @@ class Continuation:
             parent = problems[bif.branch]
             if bif.kind != PERIOD_DOUBLING or 2 * parent.period > self.settings.max_period:
                 continue
+            if any(self._ends_at(b, bif, parent) for b in branches):
+                continue  # a doubled branch already runs from another period doubling into this one
             child = parent.with_period(2 * parent.period)
+            self._periods.append(child.period)
+            self._origins[len(branches)] = handled - 1
             entered = self.enter_doubled(_Scaled(child, self.settings), bif, parent)
             if entered is None:
                 branches.append(Branch(child.period, [], ["branch switching failed"], f"period doubling at {bif.lam:.6g}"))
@@ -525,6 +576,15 @@ class Continuation:
                                    f"period doubling at {bif.lam:.6g}"))
             problems.append(child)
         return Result(branches, found)
+
+    @staticmethod
+    def _ends_at(branch: Branch, bif: Bifurcation, parent: MapProblem) -> bool:
+        """Whether ``branch`` (of twice the parent's period) ends at the period doubling ``bif``."""
+        if branch.period != 2 * parent.period or not branch.points or branch.ends[-1] != REACHED:
+            return False
+        end = branch.points[-1]
+        close = np.abs((end.x - bif.x) / parent.scale).max() < 1e-4
+        return bool(close and abs(end.lam - bif.lam) <= 1e-6 * max(abs(bif.lam), parent.lam_scale))
 
     def enter_doubled(self, scaled: _Scaled, bif: Bifurcation, parent: MapProblem):
         """The period-doubling point and the first point of the doubled branch, or ``None``."""
@@ -540,7 +600,7 @@ class Continuation:
         try:
             first = self.make_point(scaled, u, np.append(v, 0.0))
             pd_point = self.make_point(scaled, u_star, np.append(v, 0.0))
-        except PendsweepError:
+        except _STEP_FAILURES:
             return None
         if scaled.problem.subperiod_distance(first.x, first.info) < 1e-6:
             return None  # fell back onto the parent orbit

@@ -18,19 +18,18 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..backends import steps_per_period
-from ..errors import PendsweepError
 from ..kernels import N_RECORD_COLUMNS, STATUS_OK, wrap_angle
 from ..kernels._layout import REC_THETA_SEC, REC_THETADOT_SEC, REC_Y_SEC, REC_YDOT_SEC
 from ..kernels._variational import variational_periods
 from ..hopf import semi_trivial_response
 from ..params import ModelParams
-from .core import Evaluation
+from .core import Evaluation, EvaluationFailed
 
 #: Record columns of the section (y, ydot, theta, thetadot).
 SECTION = [REC_Y_SEC, REC_YDOT_SEC, REC_THETA_SEC, REC_THETADOT_SEC]
 
 
-class OrbitDiverged(PendsweepError):
+class OrbitDiverged(EvaluationFailed):
     """The orbit became non-finite during a shooting evaluation (treated as a failed step)."""
 
 
