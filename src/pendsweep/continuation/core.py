@@ -56,6 +56,8 @@ PERIOD_DOUBLING = "period-doubling"
 NEIMARK_SACKER = "neimark-sacker"
 #: Why a doubled branch ends: it has shrunk onto the orbit of half its period.
 REACHED = "reached its period doubling"
+#: Why a branch ends: it has come back to its start (an isola, or a loop through folds).
+CLOSED = "closed loop"
 
 
 class MapProblem(Protocol):
@@ -387,10 +389,25 @@ class Continuation:
                 return points, stop
             points.append(new)
             self.progress(1)
+            if len(points) > 2 and self._passes(start, prev, new, scaled):
+                points.append(start)
+                return points, CLOSED
             prev = new
             if iterations <= st.fast_iterations:
                 ds = min(st.ds_max, 1.5 * ds)
         return points, "max-points"
+
+    @staticmethod
+    def _passes(start: Point, prev: Point, new: Point, scaled: _Scaled) -> bool:
+        """Whether the step ``prev -> new`` passes ``start`` going the same way (the branch is a closed curve)."""
+        a, b, c = (scaled.pack(p.x, p.lam) for p in (prev, new, start))
+        chord = b - a
+        length = float(np.linalg.norm(chord))
+        along = float((c - a) @ chord) / length**2
+        if not 0.0 <= along <= 1.0:
+            return False
+        distance = float(np.linalg.norm(c - a - along * chord))
+        return distance < 0.25 * length and float(start.tangent @ new.tangent) > 0.9
 
     def _end_point(self, scaled: _Scaled, prev: Point, u: np.ndarray, lam: float) -> Point | None:
         """The point exactly at the crossed bound, interpolated then corrected at fixed parameter."""
@@ -440,9 +457,17 @@ class Continuation:
             if kind == PERIOD_DOUBLING:
                 w, v = np.linalg.eig(scaled.problem.evaluate(point.x, point.lam).jacobian)
                 vector = np.real(v[:, np.argmin(np.abs(w + 1.0))])
+            if any(self._same(b, kind, branch, point, scaled) for b in found):
+                continue  # the same point again (a test function flickering at its zero)
             found.append(Bifurcation(kind, point.lam, branch, point.x, point.multipliers, vector))
             located.append((s, point))
         return [p for _, p in sorted(located, key=lambda e: e[0])], None
+
+    @staticmethod
+    def _same(b: Bifurcation, kind: str, branch: int, point: Point, scaled: _Scaled) -> bool:
+        if b.kind != kind or b.branch != branch:
+            return False
+        return bool(np.linalg.norm(scaled.pack(b.x, b.lam) - scaled.pack(point.x, point.lam)) < 1e-6)
 
     def _merge_point(self, scaled, prev: Point, new: Point, branch: int, found: list[Bifurcation], ds: float,
                      lam_turns: bool) -> Point | None:
@@ -539,9 +564,11 @@ class Continuation:
 
     def branch_both_ways(self, scaled: _Scaled, start: Point, index: int, found: list[Bifurcation]) -> Branch:
         """Both directions from ``start``, merged in increasing-arclength order."""
+        ahead, ahead_end = self.march(scaled, start, index, found)
+        if ahead_end == CLOSED:
+            return Branch(scaled.problem.period, [start] + ahead, [CLOSED, CLOSED])
         backward_start = Point(start.x, start.lam, start.multipliers, -start.tangent, start.info)
         back, back_end = self.march(scaled, backward_start, index, found)
-        ahead, ahead_end = self.march(scaled, start, index, found)
         return Branch(scaled.problem.period, back[::-1] + [start] + ahead, [back_end, ahead_end])
 
     def run(self, x0: np.ndarray, lam0: float) -> Result:
