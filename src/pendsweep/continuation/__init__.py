@@ -8,6 +8,7 @@
 """
 
 from .core import (
+    BRANCH_POINT,
     FOLD,
     NEIMARK_SACKER,
     PERIOD_DOUBLING,
@@ -24,6 +25,7 @@ from .core import (
 from .shooting import PendulumShooting, semi_trivial_section
 
 __all__ = [
+    "BRANCH_POINT",
     "FOLD",
     "NEIMARK_SACKER",
     "PERIOD_DOUBLING",

@@ -34,6 +34,10 @@ period doubling    ``det(dP/dx + I)``                  (a real multiplier at -1)
 Neimark-Sacker     ``prod_{i<j} (mu_i mu_j - 1)``      the located pair is complex
 =================  ==================================  ============================
 
+A real multiplier crossing +1 where the tangent does not turn is reported
+as a ``branch-point`` (another branch crosses there, e.g. a symmetry-breaking
+pitchfork of the symmetric swing); it is not followed.
+
 A sign change is located by regula falsi (Illinois) on the arclength
 between the two points, each trial point corrected onto the branch, to
 ``locate_tol`` in scaled arclength. At a period doubling the branch of
@@ -54,6 +58,8 @@ from ..errors import PendsweepError
 FOLD = "fold"
 PERIOD_DOUBLING = "period-doubling"
 NEIMARK_SACKER = "neimark-sacker"
+#: A multiplier +1 without a fold (e.g. a symmetry-breaking pitchfork); reported, not followed.
+BRANCH_POINT = "branch-point"
 #: Why a doubled branch ends: it has shrunk onto the orbit of half its period.
 REACHED = "reached its period doubling"
 #: Why a branch ends: it has come back to its start (an isola, or a loop through folds).
@@ -243,9 +249,12 @@ class _Scaled:
         jl = np.zeros(self.n)
         if with_lam:
             h = self.settings.lam_step * max(abs(lam), p.lam_scale)
+            try:
+                minus, width = p.evaluate(x, lam - h, tangent=False).residual, 2.0 * h
+            except PendsweepError:  # lam - h is outside the parameter's range: one-sided difference
+                minus, width = ev.residual, h
             plus = p.evaluate(x, lam + h, tangent=False).residual
-            minus = p.evaluate(x, lam - h, tangent=False).residual
-            jl = (plus - minus) / (2.0 * h) * p.lam_scale / s
+            jl = (plus - minus) / width * p.lam_scale / s
         return r, np.column_stack([jx, jl]), ev
 
 
@@ -450,7 +459,7 @@ class Continuation:
             if distance < 1e-6:
                 return [p for _, p in sorted(located, key=lambda e: e[0])] + [point], REACHED
             if kind == FOLD and not lam_turns:
-                continue  # a branch point (det(P' - I) = 0 without a turn), not a fold
+                kind = BRANCH_POINT  # det(P' - I) = 0 without a turn: another branch crosses here
             if kind == NEIMARK_SACKER and not self._complex_on_circle(point.multipliers):
                 continue  # neutral saddle (real pair with mu1 mu2 = 1)
             vector = None
@@ -503,7 +512,11 @@ class Continuation:
     def locate(self, scaled: _Scaled, prev: Point, kind: str, ds: float, f0: float, f1: float, new: Point):
         """Regula falsi (Illinois) on the arclength ``s`` in ``(0, ds)`` for the zero of test function ``kind``.
 
-        Returns ``(s, point)`` or ``None`` when a trial point cannot be corrected.
+        Returns ``(s, point)``, or ``None`` when a trial point cannot be
+        corrected while the bracket is still wider than a tenth of the step.
+        Newton converges only linearly next to a branch point (the bordered
+        Jacobian is singular there), so a failure inside a narrow bracket
+        returns the bracket end with the smaller test function instead.
 
         The fold's ``det(P' - I)`` normally changes sign with the tangent; if
         it does not (rounding at a nearly vertical fold), the tangent's
@@ -517,6 +530,7 @@ class Continuation:
         u_prev = scaled.pack(prev.x, prev.lam)
         lo, hi, f_lo, f_hi = 0.0, ds, f0, f1
         best, s = new, ds
+        ends = {0.0: (abs(f0), prev), ds: (abs(f1), new)}  # bracket ends: |test function|, point
         side = 0
         for _ in range(60):
             if hi - lo < self.settings.locate_tol:
@@ -525,13 +539,17 @@ class Continuation:
             if not (lo < s < hi):
                 s = 0.5 * (lo + hi)
             u, ok, _ = self.correct_arclength(scaled, u_prev + s * prev.tangent, prev.tangent)
-            if not ok:
-                return None
             try:
-                best = self.make_point(scaled, u, prev.tangent)
+                best = self.make_point(scaled, u, prev.tangent) if ok else None
             except _STEP_FAILURES:
-                return None
+                best = None
+            if best is None:
+                if hi - lo > 0.1 * ds:
+                    return None
+                s = min((lo, hi), key=lambda e: ends[e][0])
+                return s, ends[s][1]
             f = value(best)
+            ends[s] = (abs(f), best)
             if f == 0.0:
                 break
             if np.sign(f) == np.sign(f_lo):

@@ -23,7 +23,7 @@ import numpy as np  # noqa: E402
 from ..errors import ConfigError  # noqa: E402
 from ..kernels import RECORD_COLUMNS  # noqa: E402
 from ..params import PARAM_SPECS, ModelParams  # noqa: E402
-from .core import FOLD, NEIMARK_SACKER, PERIOD_DOUBLING  # noqa: E402
+from .core import BRANCH_POINT, FOLD, NEIMARK_SACKER, PERIOD_DOUBLING  # noqa: E402
 from .run import read_json  # noqa: E402
 from .shooting import PendulumShooting  # noqa: E402
 
@@ -34,6 +34,7 @@ BIFURCATION_MARKERS = {
     PERIOD_DOUBLING: dict(marker="o", facecolors="none", edgecolors="tab:blue", s=45, label="period doubling"),
     FOLD: dict(marker="s", facecolors="none", edgecolors="tab:brown", s=45, label="fold"),
     NEIMARK_SACKER: dict(marker="D", facecolors="none", edgecolors="tab:pink", s=45, label="Neimark-Sacker"),
+    BRANCH_POINT: dict(marker="v", facecolors="none", edgecolors="tab:olive", s=45, label="branch point (+1, no fold)"),
 }
 
 
@@ -77,12 +78,26 @@ def _segment_runs(max_multipliers: np.ndarray) -> list[tuple[int, int, bool]]:
     return runs
 
 
+#: Largest change of a plotted angle [rad] between neighbouring branch points that is drawn as a line.
+#: Steps are at most 0.05 rad in the section, so larger jumps are the wrapped angle of a rotating orbit
+#: passing +-pi, or the signed peak of a swing changing sign: the line is broken there.
+ANGLE_JUMP = 0.5
+
+
+def _broken(lam: np.ndarray, values: np.ndarray, observable: str) -> tuple[np.ndarray, np.ndarray]:
+    """``(lam, values)`` with a NaN inserted after every angle jump larger than :data:`ANGLE_JUMP`."""
+    if not observable.startswith("theta"):
+        return lam, values
+    jumps = np.flatnonzero(np.abs(np.diff(values)) > ANGLE_JUMP) + 1
+    return np.insert(lam.astype(float), jumps, np.nan), np.insert(values.astype(float), jumps, np.nan)
+
+
 def draw_continuation(ax: plt.Axes, doc: dict[str, Any], observable: str = "theta_peak") -> None:
     """Draw the branches and bifurcations of continuation document ``doc`` on ``ax``."""
     if observable not in RECORD_COLUMNS:
         raise ConfigError(f"unknown observable {observable!r}; choose from {', '.join(RECORD_COLUMNS)}")
     observed = branch_observables(doc, observable)
-    labelled: set[str] = set()
+    labelled = set(ax.get_legend_handles_labels()[1])  # one legend entry per kind over several documents
     for branch, values in zip(doc["branches"], observed):
         if not branch["points"]:
             continue
@@ -91,7 +106,8 @@ def draw_continuation(ax: plt.Axes, doc: dict[str, Any], observable: str = "thet
         for first, last, stable in _segment_runs(np.array([p["max_multiplier"] for p in branch["points"]])):
             label = f"period-{branch['period']} orbit, {'stable' if stable else 'unstable'}"
             for j in range(values.shape[1]):
-                ax.plot(lam[first : last + 1], values[first : last + 1, j], color=colour, lw=1.2 if stable else 0.9,
+                ax.plot(*_broken(lam[first : last + 1], values[first : last + 1, j], observable), color=colour,
+                        lw=1.2 if stable else 0.9,
                         ls="-" if stable else "--", label=None if label in labelled else label, zorder=3)
                 labelled.add(label)
     for bif in doc["bifurcations"]:

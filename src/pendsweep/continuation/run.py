@@ -3,7 +3,7 @@
 The JSON document (issue 15)::
 
     {"parameter": "alpha", "unit": "N",
-     "bifurcations": [{"type": "period-doubling"|"fold"|"neimark-sacker", "value": v, "branch": i}],
+     "bifurcations": [{"type": "period-doubling"|"fold"|"neimark-sacker"|"branch-point", "value": v, "branch": i}],
      "branches": [{"period": k, "points": [{"value": v, "section": [y, ydot, theta, thetadot],
                                             "multipliers": [[re, im], ...], "max_multiplier": m,
                                             "stable": bool}]}],
@@ -14,7 +14,9 @@ The JSON document (issue 15)::
 ``multipliers`` are the Floquet multipliers of ``P^k`` (complex, as
 ``[re, im]``); a point is stable when all have modulus below 1. Points are
 in arclength order; located bifurcation points are included in their
-branch. ``config`` holds everything needed to recompute the document.
+branch. ``branch-point`` (a multiplier +1 without a fold, such as the
+symmetry-breaking pitchfork of the swing near 54 N) extends the issue's three
+types. ``config`` holds everything needed to recompute the document.
 """
 
 from __future__ import annotations
@@ -223,12 +225,34 @@ def read_json(path: Path) -> dict[str, Any]:
     return doc
 
 
+#: Relative repeat tolerance of recorded sections for a sweep point to count as a start orbit.
+START_REPEAT_TOL = 1e-2
+
+
+def section_period(sections: np.ndarray) -> int | None:
+    """Smallest ``n`` with the last ``n`` recorded sections repeating the ``n`` before them, or ``None``.
+
+    ``sections`` is ``(periods, 4)`` [m, m/s, rad, rad/s]; each component is
+    compared relative to its range over the record (theta wrapped), to
+    :data:`START_REPEAT_TOL` - only a Newton start, which need not be exact.
+    Rotating orbits qualify (the section is wrapped).
+    """
+    size = np.maximum(np.ptp(sections, axis=0), np.array([1e-6, 1e-5, 1e-3, 1e-2]))
+    for n in range(1, sections.shape[0] // 2 + 1):
+        d = sections[-n:] - sections[-2 * n : -n]
+        d[:, 2] = (d[:, 2] + np.pi) % (2 * np.pi) - np.pi
+        if np.all(np.abs(d) <= START_REPEAT_TOL * size):
+            return n
+    return None
+
+
 def start_from_file(path: Path, parameter: str, value: float) -> tuple[tuple[float, ...], float, int]:
     """A start orbit ``(section, parameter value, period)`` from a file.
 
     * a sweep result (``.parquet``): the point of the first branch whose value
-      is nearest ``value``, its last recorded section, and the period of its
-      ``motion`` label (``periodic-n`` or ``semi-trivial``);
+      is nearest ``value``, its last recorded section, and the period with
+      which its recorded sections repeat (:func:`section_period`; rotating
+      orbits included);
     * a JSON object ``{"value": v, "section": [4 numbers], "period": k}``
       (``period`` defaults to 1), for example one point of a continuation
       document with its branch's period added.
@@ -245,19 +269,15 @@ def start_from_file(path: Path, parameter: str, value: float) -> tuple[tuple[flo
         values = np.sort(first[parameter].unique())
         nearest = float(values[np.argmin(np.abs(values - value))])
         rows = first[first[parameter] == nearest].sort_values("period")
-        motion = str(rows["motion"].iloc[-1]) if "motion" in rows else "n/a"
-        if motion == "semi-trivial":
-            period = 1
-        elif motion.startswith("periodic-"):
-            period = int(motion.split("-")[1])
-        else:
+        sections = rows[["y_sec", "ydot_sec", "theta_sec", "thetadot_sec"]].to_numpy(dtype=float)
+        period = section_period(sections)
+        if period is None:
+            motion = str(rows["motion"].iloc[-1]) if "motion" in rows else "unclassified"
             raise ConfigError(
-                f"{str(path)!r} at {parameter} = {nearest:g} is {motion!r}, not a periodic orbit; "
-                f"choose another --start-value"
+                f"{str(path)!r} at {parameter} = {nearest:g} is {motion!r}: its recorded sections do not repeat "
+                f"(to {START_REPEAT_TOL:g}) with a period of at most {len(sections) // 2}; choose another --start-value"
             )
-        last = rows.iloc[-1]
-        section = tuple(float(last[c]) for c in ("y_sec", "ydot_sec", "theta_sec", "thetadot_sec"))
-        return section, nearest, period
+        return tuple(sections[-1]), nearest, period
     try:
         data = json.loads(path.read_text())
     except FileNotFoundError:
