@@ -150,6 +150,59 @@ def test_mass_continuation_two_period_doublings():
     assert inside and not any(inside) and outside and all(outside)
 
 
+# -- the paper's damping: Coulomb friction smoothed by tanh(w / eps) -------------------
+def test_coulomb_fold_converges_in_eps_and_brackets_the_brute_force_sweep(tmp_path):
+    """Table IV damping: the period-2 branch turns at a fold (rest stays stable), the same for every eps.
+
+    The fold moves by less than 1e-3 N over eps = 1e-2 ... 1e-3 rad/s. A
+    brute-force sweep with the paper's held signum (run_sweep, no smoothing),
+    started on the period-2 swing, keeps swinging 0.05 N above the fold and
+    comes to rest 0.05 N below it.
+    """
+    from pendsweep.backends import make_backend
+    from pendsweep.sweep import SweepConfig, run_sweep
+
+    params = TABLE_IV.replace(alpha=18.0)
+    backend = make_backend("emulated")
+    x0 = backend.run_point(params, backend.initial_state(params, 0, 0, 0.1, 0), 600, 1).records[-1, 2:6].copy()
+    folds = []
+    for eps in (1e-2, 3e-3, 1e-3):
+        problem = PendulumShooting(params, "alpha", period=2, eps=eps, lam_scale=4.0)
+        result = Continuation(problem, (15.0, 19.0), Settings(max_period=2)).run(x0, 18.0)
+        (fold,) = [b.lam for b in result.bifurcations if b.kind == FOLD]
+        folds.append(fold)
+        lower = [p for p in result.branches[0].points if p.lam < 17.0]
+        assert any(p.stable for p in lower) and any(not p.stable for p in lower)  # swing and saddle meet there
+    assert max(folds) - min(folds) < 1e-3
+    assert not [b for b in result.bifurcations if b.kind == PERIOD_DOUBLING]  # rest never loses stability
+    fold = folds[-1]
+    swing = min((p for p in result.branches[0].points if p.stable), key=lambda p: abs(p.lam - fold - 0.05))
+    values = (round(fold - 0.05, 4), round(fold + 0.05, 4))
+    df = run_sweep(SweepConfig("alpha", values, model={"fe": 2.5}, mode="fresh", initial=tuple(swing.x),
+                               transient_periods=1000, record_periods=4), tmp_path / "bracket.parquet")
+    final = df.groupby("alpha")["theta_absmax"].max()
+    assert final[values[0]] < 0.0013  # below the fold: at rest (one encoder pulse)
+    assert final[values[1]] > 0.05  # above: still on the swing
+
+
+def test_cli_continue_starts_from_a_sweep_result(tmp_path):
+    """--start SWEEP.parquet takes the period from the recorded sections and Newton converges."""
+    from pendsweep.sweep import SweepConfig, run_sweep
+
+    sweep = tmp_path / "s.parquet"
+    run_sweep(SweepConfig("alpha", (29.5, 30.0), model={"fe": 2.5, "b1": 0.0, "b3": 0.0}, mode="fresh",
+                          transient_periods=400, record_periods=6), sweep)
+    out = tmp_path / "c.json"
+    r = CliRunner().invoke(main, ["continue", "alpha", "--from", "28", "--to", "31", "--set", "b1=0", "--set", "b3=0",
+                                  "--start", str(sweep), "--start-value", "30", "--json", str(out)])
+    assert r.exit_code == 0, r.output
+    doc = json.loads(out.read_text())
+    assert doc["branches"][0]["period"] == 2 and doc["config"]["start_value"] == 30.0
+    values = [p["value"] for p in doc["branches"][0]["points"]]
+    assert min(values) == pytest.approx(28.0) and max(values) == pytest.approx(31.0)
+    assert all(p["stable"] for p in doc["branches"][0]["points"])
+
+
 # -- a system with a known answer: the forced Duffing oscillator ----------------------
 class Duffing:
     """x'' + delta x' + x + beta x^3 = F cos(w t), continued in F; stroboscopic map by RK4 (written here)."""

@@ -217,6 +217,10 @@ class EvaluationFailed(Exception):
     """A problem could not evaluate its map (e.g. a diverged orbit); the step is retried smaller."""
 
 
+#: Corrector iterations allowed while locating a bifurcation: next to a branch point the bordered
+#: Jacobian is singular and Newton converges only linearly (about halving the error per iteration).
+LOCATE_ITERATIONS = 50
+
 #: What a failed trial step may raise: the parameter left its range, or the map failed.
 _STEP_FAILURES = (PendsweepError, EvaluationFailed)
 
@@ -335,17 +339,22 @@ class Continuation:
         X, ok, updates = newton(fun, x0 / s, self.settings.newton_tol, self.settings.max_iterations)
         return X * s, ok, updates
 
-    def correct_arclength(self, scaled: _Scaled, u_pred: np.ndarray, normal: np.ndarray):
-        """Newton on ``G(u) = 0, normal . (u - u_pred) = 0``; returns ``(u, converged, iterations)``."""
+    def correct_arclength(self, scaled: _Scaled, u_pred: np.ndarray, normal: np.ndarray, max_iterations: int = 0):
+        """Newton on ``G(u) = 0, normal . (u - u_pred) = 0``; returns ``(u, converged, iterations)``.
+
+        ``max_iterations`` (default ``settings.max_iterations``) is raised
+        when locating bifurcations, where Newton may be only linear.
+        """
+        max_iterations = max_iterations or self.settings.max_iterations
 
         def fun(u):
             r, a, _ = scaled.residual_and_jacobian(u)
             return np.append(r, normal @ (u - u_pred)), np.vstack([a, normal])
 
         try:
-            u, ok, updates = newton(fun, u_pred, self.settings.newton_tol, self.settings.max_iterations)
+            u, ok, updates = newton(fun, u_pred, self.settings.newton_tol, max_iterations)
         except _STEP_FAILURES:
-            return u_pred, False, self.settings.max_iterations
+            return u_pred, False, max_iterations
         return u, ok, len(updates)
 
     def make_point(self, scaled: _Scaled, u: np.ndarray, previous_tangent: np.ndarray) -> Point:
@@ -538,7 +547,7 @@ class Continuation:
             s = hi - f_hi * (hi - lo) / (f_hi - f_lo) if f_hi != f_lo else 0.5 * (lo + hi)
             if not (lo < s < hi):
                 s = 0.5 * (lo + hi)
-            u, ok, _ = self.correct_arclength(scaled, u_prev + s * prev.tangent, prev.tangent)
+            u, ok, _ = self.correct_arclength(scaled, u_prev + s * prev.tangent, prev.tangent, LOCATE_ITERATIONS)
             try:
                 best = self.make_point(scaled, u, prev.tangent) if ok else None
             except _STEP_FAILURES:
