@@ -69,6 +69,10 @@ def _columns(params: list[ModelParams]) -> tuple[np.ndarray, ...]:
 def rk4_step_for(xp):
     """One RK4 step of Eq. (11) written against an array module (numpy or jax.numpy).
 
+    This is a peer, the script a user would write without pendsweep, so it is
+    deliberately an independent implementation: it shares no code with the
+    kernels (numpy and JAX cannot call numba functions anyway).
+
     ``step(cols, z, t, dt)``: ``cols`` are the per-point columns of
     :func:`_columns`, ``z`` the stacked state ``(4, ...)``; the signum of
     thetadot is held over the step, the forcing is ``alpha sin(omega_e t)``.

@@ -24,7 +24,7 @@ import math
 import numba as nb
 import numpy as np
 
-from ._emulated import forcing_table, rk4_step
+from ._emulated import eq11_step, forcing_table
 from ._layout import (
     N_PARAMS,
     P_B1,
@@ -80,12 +80,12 @@ def _step_chunk(y, yd, th, thd, peak, yabs, live, const, k, sgn_per_stage, unifo
             c1 = c0 * rc - s0 * rs
             s2 = s1 * rc + c1 * rs
         y0, yd0, th0, thd0, pk0, ya0 = y[i], yd[i], th[i], thd[i], peak[i], yabs[i]
-        y1, yd1, th1, thd1 = rk4_step(
-            y0, yd0, th0, thd0, a * s0, a * s1, a * s2, const[_DT, i],
+        q = (
             const[P_M_PEND, i], const[P_L, i], const[P_B1, i], const[P_B2, i], const[P_B3, i],
             const[P_G, i], const[P_M, i], const[P_C, i], const[P_K, i], const[P_K3, i],
             sgn_per_stage, True, const[_INV_L, i], const[_INV_M, i],
-        )
+        )  # fmt: skip
+        y1, yd1, th1, thd1 = eq11_step((y0, yd0, th0, thd0), a * s0, a * s1, a * s2, const[_DT, i], q)
         _, pk1, ya1 = fold_extremes(abs(pk0), pk0, ya0, y1, th1)
         on = live[i] != 0.0
         y[i] = y1 if on else y0
