@@ -85,13 +85,17 @@ class PendulumShooting:
         return self.params.replace(**{self.parameter: lam})
 
     def evaluate(self, x: np.ndarray, lam: float, tangent: bool = True) -> Evaluation:
-        """``P^k(x) - x`` (theta difference wrapped), ``dP^k/dx`` and the orbit's records."""
+        """``P^k(x) - x`` (theta difference wrapped), ``dP^k/dx`` and the orbit's records.
+
+        The monodromy matrix is always integrated (one kernel for both uses);
+        ``tangent`` only decides whether it is returned.
+        """
         q = self.params_at(lam)
         state = np.array(x, dtype=np.float64)
         phi = np.eye(4)
         records = np.empty((self.period, N_RECORD_COLUMNS))
         status, trace = variational_periods(
-            state, phi, q.kernel_array(), q.alpha, q.fe, self.steps, self.period, self.eps, tangent, records
+            state, phi, q.kernel_array(), q.alpha, q.fe, self.steps, self.period, self.eps, records
         )
         if status != STATUS_OK:
             raise OrbitDiverged(f"orbit diverged at {self.parameter} = {lam:g}")
