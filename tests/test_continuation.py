@@ -201,6 +201,16 @@ def test_cli_continue_starts_from_a_sweep_result(tmp_path):
     assert min(values) == pytest.approx(28.0) and max(values) == pytest.approx(31.0)
     assert all(p["stable"] for p in doc["branches"][0]["points"])
 
+    # `pendsweep plot` draws the branches over the sweep on the same axes; other parameters are refused.
+    r = CliRunner().invoke(main, ["plot", str(sweep), str(out), "-o", str(tmp_path / "o.png")])
+    assert r.exit_code == 0, r.output
+    assert (tmp_path / "o.png").stat().st_size > 0
+    other = json.loads(out.read_text())
+    other["parameter"] = "M"
+    (tmp_path / "m.json").write_text(json.dumps(other))
+    r = CliRunner().invoke(main, ["plot", str(sweep), str(tmp_path / "m.json"), "-o", str(tmp_path / "p.png")])
+    assert r.exit_code == 2 and "different parameters" in r.output
+
 
 # -- a system with a known answer: the forced Duffing oscillator ----------------------
 class Duffing:
