@@ -227,6 +227,9 @@ class Duffing:
     def subperiod_distance(self, x, info):
         return math.inf
 
+    def image_distance(self, info, y):
+        return math.inf
+
     def evaluate(self, x, F, tangent=True):
         d, b, w = self.delta, self.beta, self.omega
         h = 2 * math.pi / w / self.steps

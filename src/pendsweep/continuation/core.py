@@ -28,8 +28,8 @@ bifurcation, evaluated at every accepted point:
 =================  ==================================  ============================
 event              test function                       condition
 =================  ==================================  ============================
-fold (mu = +1)     ``det(dP/dx - I)``                  and the tangent's ``lam``
-                                                       component changes sign
+fold (mu = +1)     ``det(dP/dx - I)``                  the tangent's ``lam``
+                                                       component vanishes there
 period doubling    ``det(dP/dx + I)``                  (a real multiplier at -1)
 Neimark-Sacker     ``prod_{i<j} (mu_i mu_j - 1)``      the located pair is complex
 =================  ==================================  ============================
@@ -96,6 +96,9 @@ class MapProblem(Protocol):
     def subperiod_distance(self, x: np.ndarray, info: Any) -> float:
         """Scaled distance (``info`` from :meth:`evaluate`) of the orbit through ``x`` from an orbit of half its period (inf if none)."""
 
+    def image_distance(self, info: Any, y: np.ndarray) -> float:
+        """Scaled distance from ``y`` to the nearest other section point of the orbit evaluated in ``info`` (inf if ``k = 1``)."""
+
 
 @dataclass
 class Evaluation:
@@ -134,6 +137,9 @@ class Settings:
     max_turn : float
         Largest angle [rad] between consecutive tangents; larger turns are
         retried with half the step (keeps the march on its branch).
+    max_correction : float
+        Largest corrector displacement as a fraction of the step; longer
+        corrections are retried with half the step (they land on another branch).
     max_points : int
         Points per direction and branch.
     locate_tol : float
@@ -155,6 +161,7 @@ class Settings:
     max_iterations: int = 10
     fast_iterations: int = 3
     max_turn: float = 0.5
+    max_correction: float = 0.3
     max_points: int = 400
     locate_tol: float = 1e-9
     lam_step: float = 1e-6
@@ -216,6 +223,11 @@ class ContinuationError(RuntimeError):
 class EvaluationFailed(Exception):
     """A problem could not evaluate its map (e.g. a diverged orbit); the step is retried smaller."""
 
+
+#: A located zero of det(P' - I) is a fold when the tangent's parameter component is below this
+#: (it vanishes at a fold), otherwise a branch point. Only det(P' - I) changing sign triggers either:
+#: the tangent's parameter component alone flickers in sign where a branch is nearly vertical.
+FOLD_TANGENT = 1e-3
 
 #: Corrector iterations allowed while locating a bifurcation: next to a branch point the bordered
 #: Jacobian is singular and Newton converges only linearly (about halving the error per iteration).
@@ -374,10 +386,17 @@ class Continuation:
         ds = st.ds
         prev = start
         points: list[Point] = []
+        lo, hi = self.bounds
+        on_bound = min(abs(start.lam - lo), abs(start.lam - hi)) <= 1e-12 * (hi - lo)
+        if on_bound and not self._in_bounds(start.lam + st.ds_min * start.tangent[-1] * scaled.problem.lam_scale):
+            return points, "range"  # started on a bound, heading out of the interval
         while len(points) < st.max_points:
             u_prev = scaled.pack(prev.x, prev.lam)
             u_pred = u_prev + ds * prev.tangent
             u, ok, iterations = self.correct_arclength(scaled, u_pred, prev.tangent)
+            # A correction as long as the step itself has left the branch (e.g. for the mirror image
+            # of a small swing, which is another fixed point of P^2 nearby).
+            ok = ok and float(np.linalg.norm(u - u_pred)) <= st.max_correction * ds
             if ok:
                 x, lam = scaled.unpack(u)
                 if not self._in_bounds(lam):
@@ -391,14 +410,24 @@ class Continuation:
                         self.progress(1)
                     return points, "range"
                 try:
-                    new = self.make_point(scaled, u, prev.tangent)
+                    # Oriented along the secant, not the old tangent: across a sharp fold the tangent
+                    # turns by more than 90 degrees, and the turn check below must see that.
+                    new = self.make_point(scaled, u, u - u_prev)
                 except _STEP_FAILURES:
                     ok = False
             if ok and math.acos(min(1.0, float(new.tangent @ prev.tangent))) > st.max_turn and ds > st.ds_min:
                 ok = False
+            if ok and self._jumped_to_image(scaled, prev, new):
+                lam_turns = np.sign(prev.tangent[-1]) != np.sign(new.tangent[-1])
+                merge = self._merge_point(scaled, prev, new, branch, found, ds, lam_turns)
+                if merge is not None:
+                    return points + [merge], REACHED
+                ok = False
             if not ok:
                 ds *= 0.5
                 if ds < st.ds_min:
+                    if scaled.problem.subperiod_distance(prev.x, prev.info) < 1e-4:
+                        return points, REACHED  # shrunk onto the orbit of half the period
                     return points, "step-too-small"
                 continue
             located, stop = self._detect(scaled, prev, new, branch, found, ds)
@@ -414,6 +443,20 @@ class Continuation:
             if iterations <= st.fast_iterations:
                 ds = min(st.ds_max, 1.5 * ds)
         return points, "max-points"
+
+    @staticmethod
+    def _jumped_to_image(scaled: _Scaled, prev: Point, new: Point) -> bool:
+        """Whether ``new`` lies nearer another section point of ``prev``'s orbit than ``prev`` itself.
+
+        A ``k``-periodic orbit is ``k`` fixed points of ``P^k``; for a small
+        swing the images (e.g. the mirror image half a period on) are close,
+        and a step may land on another one's branch. The march must then
+        take a shorter step.
+        """
+        p = scaled.problem
+        d_lam = (new.lam - prev.lam) / p.lam_scale
+        to_image = math.hypot(p.image_distance(prev.info, new.x), d_lam)
+        return to_image < float(np.linalg.norm(scaled.pack(new.x, new.lam) - scaled.pack(prev.x, prev.lam)))
 
     @staticmethod
     def _passes(start: Point, prev: Point, new: Point, scaled: _Scaled) -> bool:
@@ -454,10 +497,7 @@ class Continuation:
         merge = self._merge_point(scaled, prev, new, branch, found, ds, lam_turns)
         if merge is not None:
             return [merge], REACHED
-        events = []
-        for kind in (FOLD, PERIOD_DOUBLING, NEIMARK_SACKER):
-            if np.sign(f_prev[kind]) != np.sign(f_new[kind]) or (kind == FOLD and lam_turns):
-                events.append(kind)
+        events = [kind for kind in (FOLD, PERIOD_DOUBLING, NEIMARK_SACKER) if np.sign(f_prev[kind]) != np.sign(f_new[kind])]
         located: list[tuple[float, Point]] = []
         for kind in events:
             s_point = self.locate(scaled, prev, kind, ds, f_prev[kind], f_new[kind], new)
@@ -467,8 +507,8 @@ class Continuation:
             distance = scaled.problem.subperiod_distance(point.x, point.info)
             if distance < 1e-6:
                 return [p for _, p in sorted(located, key=lambda e: e[0])] + [point], REACHED
-            if kind == FOLD and not lam_turns:
-                kind = BRANCH_POINT  # det(P' - I) = 0 without a turn: another branch crosses here
+            if kind == FOLD and abs(point.tangent[-1]) > FOLD_TANGENT:
+                kind = BRANCH_POINT  # det(P' - I) = 0 where the branch does not turn: another branch crosses
             if kind == NEIMARK_SACKER and not self._complex_on_circle(point.multipliers):
                 continue  # neutral saddle (real pair with mu1 mu2 = 1)
             vector = None
@@ -527,15 +567,8 @@ class Continuation:
         Jacobian is singular there), so a failure inside a narrow bracket
         returns the bracket end with the smaller test function instead.
 
-        The fold's ``det(P' - I)`` normally changes sign with the tangent; if
-        it does not (rounding at a nearly vertical fold), the tangent's
-        parameter component is used instead.
         """
-        if kind == FOLD and np.sign(f0) == np.sign(f1):
-            value = lambda pt: float(pt.tangent[-1])  # noqa: E731
-            f0, f1 = float(prev.tangent[-1]), float(new.tangent[-1])
-        else:
-            value = lambda pt: test_functions(pt.multipliers)[kind]  # noqa: E731
+        value = lambda pt: test_functions(pt.multipliers)[kind]  # noqa: E731
         u_prev = scaled.pack(prev.x, prev.lam)
         lo, hi, f_lo, f_hi = 0.0, ds, f0, f1
         best, s = new, ds

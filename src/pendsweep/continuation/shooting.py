@@ -112,6 +112,15 @@ class PendulumShooting:
         return float(np.abs(d / self.scale).max())
 
 
+    def image_distance(self, info: OrbitInfo, y: np.ndarray) -> float:
+        """Scaled 2-norm distance from ``y`` to the nearest section after 1 ... k-1 periods (inf for ``k = 1``)."""
+        d = info.records[: self.period - 1][:, SECTION] - y
+        if not d.size:
+            return math.inf
+        d[:, 2] = (d[:, 2] + math.pi) % (2.0 * math.pi) - math.pi
+        return float(np.sqrt(((d / self.scale) ** 2).sum(axis=1)).min())
+
+
 def semi_trivial_section(params: ModelParams) -> np.ndarray:
     """``(y, ydot, 0, 0)`` at forcing phase 0 of the oscillator's steady response, pendulum at rest.
 
