@@ -17,7 +17,6 @@ from pendsweep.continuation import (
     Evaluation,
     PendulumShooting,
     Settings,
-    newton,
     semi_trivial_section,
 )
 from pendsweep.continuation.core import _Scaled

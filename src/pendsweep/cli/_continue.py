@@ -8,7 +8,13 @@ from pathlib import Path
 import click
 
 from ..continuation import ContinuationError
-from ..continuation.run import CONTINUABLE, ContinuationConfig, run_continuation, start_from_file, write_json
+from ..continuation.run import (
+    CONTINUABLE,
+    ContinuationConfig,
+    run_continuation,
+    start_from_file,
+    write_json,
+)
 from ..errors import ConfigError
 from ..params import PARAM_SPECS
 from ._app import FINITE, main

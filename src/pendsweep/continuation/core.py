@@ -48,8 +48,9 @@ component along the critical eigenvector fixed at ``switch_offset``.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable, Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -84,13 +85,13 @@ class MapProblem(Protocol):
     lam_scale: float
     period: int
 
-    def evaluate(self, x: np.ndarray, lam: float, tangent: bool = True) -> "Evaluation":
+    def evaluate(self, x: np.ndarray, lam: float, tangent: bool = True) -> Evaluation:
         """``G(x, lam) = P(x; lam) - x`` and ``dP/dx`` (when ``tangent``).
 
         May raise :class:`EvaluationFailed` or a ParameterError (``lam`` out of range).
         """
 
-    def with_period(self, period: int) -> "MapProblem":
+    def with_period(self, period: int) -> MapProblem:
         """The same system over ``period`` applications of the one-period map."""
 
     def subperiod_distance(self, x: np.ndarray, info: Any) -> float:
@@ -370,7 +371,7 @@ class Continuation:
         return u, ok, len(updates)
 
     def make_point(self, scaled: _Scaled, u: np.ndarray, previous_tangent: np.ndarray) -> Point:
-        r, a, ev = scaled.residual_and_jacobian(u)
+        _, a, ev = scaled.residual_and_jacobian(u)
         x, lam = scaled.unpack(u)
         return Point(x, lam, np.linalg.eigvals(ev.jacobian), null_tangent(a, previous_tangent), ev.info)
 
@@ -398,7 +399,7 @@ class Continuation:
             # of a small swing, which is another fixed point of P^2 nearby).
             ok = ok and float(np.linalg.norm(u - u_pred)) <= st.max_correction * ds
             if ok:
-                x, lam = scaled.unpack(u)
+                lam = scaled.unpack(u)[1]
                 if not self._in_bounds(lam):
                     end = self._end_point(scaled, prev, u, lam)
                     if end is not None:
@@ -568,7 +569,7 @@ class Continuation:
         returns the bracket end with the smaller test function instead.
 
         """
-        value = lambda pt: test_functions(pt.multipliers)[kind]  # noqa: E731
+        value = lambda pt: test_functions(pt.multipliers)[kind]
         u_prev = scaled.pack(prev.x, prev.lam)
         lo, hi, f_lo, f_hi = 0.0, ds, f0, f1
         best, s = new, ds

@@ -11,21 +11,22 @@ solid, unstable ones dashed; bifurcations are marked on their branch.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from ..errors import ConfigError  # noqa: E402
-from ..kernels import RECORD_COLUMNS  # noqa: E402
-from ..params import PARAM_SPECS, ModelParams  # noqa: E402
-from .core import BRANCH_POINT, FOLD, NEIMARK_SACKER, PERIOD_DOUBLING  # noqa: E402
-from .run import read_json  # noqa: E402
-from .shooting import PendulumShooting  # noqa: E402
+from ..errors import ConfigError
+from ..kernels import RECORD_COLUMNS
+from ..params import PARAM_SPECS, ModelParams
+from .core import BRANCH_POINT, FOLD, NEIMARK_SACKER, PERIOD_DOUBLING
+from .run import read_json
+from .shooting import PendulumShooting
 
 #: Colour per branch period (forcing periods).
 PERIOD_COLOURS = {1: "black", 2: "tab:red", 4: "tab:green", 8: "tab:purple"}

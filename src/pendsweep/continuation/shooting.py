@@ -18,10 +18,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..backends import steps_per_period
+from ..hopf import semi_trivial_response
 from ..kernels import N_RECORD_COLUMNS, STATUS_OK, wrap_angle
 from ..kernels._layout import REC_THETA_SEC, REC_THETADOT_SEC, REC_Y_SEC, REC_YDOT_SEC
 from ..kernels._variational import variational_periods
-from ..hopf import semi_trivial_response
 from ..params import ModelParams
 from .core import Evaluation, EvaluationFailed
 
@@ -77,7 +77,7 @@ class PendulumShooting:
         w = params.omega_e
         self.scale = np.array([params.l, params.l * w, 1.0, w])
 
-    def with_period(self, period: int) -> "PendulumShooting":
+    def with_period(self, period: int) -> PendulumShooting:
         return PendulumShooting(self.params, self.parameter, period, self.dt, self.eps, self.lam_scale, self.steps)
 
     def params_at(self, lam: float) -> ModelParams:

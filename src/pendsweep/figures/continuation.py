@@ -8,18 +8,18 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.pyplot as plt
 
-from ..backends import make_backend  # noqa: E402
-from ..continuation.overlay import draw_continuation  # noqa: E402
-from ..hopf import hopf_simulate  # noqa: E402
-from ..continuation.run import ContinuationConfig, run_continuation, write_json  # noqa: E402
-from ..params import ModelParams  # noqa: E402
-from ..plotting import draw_bifurcation  # noqa: E402
-from ..results import read_results  # noqa: E402
-from ..sweep import run_sweep  # noqa: E402
-from ..sweepfile import SWEEPS_DIR, load_sweep  # noqa: E402
-from . import figure  # noqa: E402
+from ..backends import make_backend
+from ..continuation.overlay import draw_continuation
+from ..continuation.run import ContinuationConfig, run_continuation, write_json
+from ..hopf import hopf_simulate
+from ..params import ModelParams
+from ..plotting import draw_bifurcation
+from ..results import read_results
+from ..sweep import run_sweep
+from ..sweepfile import SWEEPS_DIR, load_sweep
+from . import figure
 
 #: Per panel (named by its sweep file): ``(parameter value, start angle [rad], period)`` of each
 #: simulated start orbit - the period-2 swing, and at 38 N the rotation of one turn per forcing

@@ -29,7 +29,6 @@ Eq. (11) is written here.
 import math
 
 import numba as nb
-import numpy as np
 from numba.extending import overload
 
 from ._emulated import eq11_params, forcing_table
