@@ -345,3 +345,15 @@ def test_cli_continue_runtime_failure_exits_1(tmp_path):
                                   "--json", str(tmp_path / "x.json")])
     assert r.exit_code == 1, r.output
     assert "Newton did not converge" in r.output
+
+
+def test_fig11_continuation_quick(tmp_path):
+    """The registry figure: sweeps, five continuations and the threshold panel, in quick form."""
+    r = CliRunner().invoke(main, ["figures", "fig11_continuation", "--quick", "--out", str(tmp_path)])
+    assert r.exit_code == 0, r.output
+    assert (tmp_path / "fig11_continuation-quick.png").stat().st_size > 0
+    docs = {p.name: json.loads(p.read_text()) for p in tmp_path.glob("*-continuation-*.json")}
+    assert len(docs) == 5
+    period_two = docs["fig11a-continuation-1-quick.json"]
+    assert [b["type"] for b in period_two["bifurcations"]] == [FOLD]  # Table IV damping: a fold, no doubling
+    assert period_two["bifurcations"][0]["value"] == pytest.approx(16.1526, abs=1e-3)
