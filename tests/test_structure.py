@@ -14,6 +14,9 @@ import pytest
 
 SRC = Path(__file__).resolve().parents[1] / "src" / "pendsweep"
 KERNEL_FILES = sorted((SRC / "kernels").glob("*.py"))
+#: Benchmark peers: the scripts a user would write without pendsweep, independent by design
+#: (numpy/JAX cannot call numba functions; the naive script must not import the package).
+PEERS = ["bench/naive_sweep.py", "bench/throughput.py"]
 #: The longest a numba kernel function may be (issue 10: "no kernel function over about 80 lines").
 MAX_KERNEL_LINES = 80
 
@@ -43,8 +46,7 @@ def test_each_right_hand_side_is_defined_once(rhs):
 def test_damping_law_is_written_once():
     law = re.compile(r"b1\s*\*\s*\w+\s*\+\s*b2\s*\*\s*\w+\s*\+\s*b3")
     hits = [str(p.relative_to(SRC)) for p in _python_files() if law.search(p.read_text())]
-    # The rhs module, and the independent array-module peer of the benchmark (numpy/JAX cannot call numba).
-    assert sorted(hits) == ["bench/throughput.py", "kernels/_rhs.py"]
+    assert sorted(hits) == sorted([*PEERS, "kernels/_rhs.py"])
 
 
 def test_parameter_order_is_never_written_by_hand():
