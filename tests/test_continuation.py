@@ -130,6 +130,15 @@ def test_period_two_branch_supercritical_and_stable_to_46N(alpha_run):
     assert not [b for b in result.bifurcations if b.branch != 0]
 
 
+def test_period_doubling_in_fe_is_on_the_floquet_boundary():
+    """Continued in fe at alpha = 17 N (steps per period fixed, dt drifts): hopf_floquet there gives 17 N."""
+    params = SMOOTH.replace(alpha=17.0, fe=2.45)
+    problem = PendulumShooting(params, "fe", lam_scale=0.15)
+    result = Continuation(problem, (2.45, 2.6), Settings(max_period=1)).run(semi_trivial_section(params), 2.45)
+    (pd,) = [b.lam for b in result.bifurcations if b.kind == PERIOD_DOUBLING]
+    assert hopf_floquet(SMOOTH.replace(fe=pd), steps=problem.steps)["alpha_H"] == pytest.approx(17.0, rel=1e-4)
+
+
 def test_mass_continuation_two_period_doublings():
     """Issue: in M at alpha = 17 N two period doublings with a stable period-2 branch between them."""
     params = SMOOTH.replace(alpha=17.0, M=2.0)
