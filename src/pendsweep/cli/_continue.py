@@ -17,6 +17,7 @@ from ..continuation.run import (
 )
 from ..errors import ConfigError
 from ..params import PARAM_SPECS
+from ..results import check_writable, read_metadata
 from ._app import FINITE, main
 from ._sweep import _finite, _key_value, load_model_file
 
@@ -74,6 +75,13 @@ def continue_command(parameter, start, stop, alpha, fe, M_, sets, model_file, st
         newton_tol=newton_tol,
     )
     json_path = json_path or Path(f"results/continue-{parameter}.json")
+    check_writable(json_path)
+    if plot_path is not None and plot_path.suffix.lower() not in {".png", ".pdf", ".svg"}:
+        raise ConfigError(f"plot file {str(plot_path)!r} must end in .png, .pdf or .svg")
+    for sweep in overlays:  # refuse unreadable or other-parameter sweeps before the run, not after
+        swept = read_metadata(sweep).get("config", {}).get("parameter")
+        if swept != parameter:
+            raise ConfigError(f"--overlay {str(sweep)!r} sweeps {swept!r}, not {parameter!r}")
     progress = sys.stderr.isatty() if progress is None else progress
     try:
         doc = run_continuation(config, progress=progress)

@@ -129,8 +129,8 @@ class Settings:
     ds, ds_min, ds_max : float
         First, smallest and largest arclength step.
     newton_tol : float
-        Newton stops when the scaled max-norm of the update and of the
-        residual are both below this.
+        Newton stops when the scaled max-norm of the update is below this
+        (and the residual it corrected is of the same size, :func:`newton`).
     max_iterations : int
         Corrector iterations before a step counts as failed.
     fast_iterations : int
@@ -278,9 +278,11 @@ class _Scaled:
 def newton(fun: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], x0: np.ndarray, tol: float, max_iterations: int):
     """Newton's method on ``fun(x) = (residual, jacobian)`` (square).
 
-    Converged when the max-norm of the update and of the residual are below
-    ``tol``. Returns ``(x, converged, updates)`` with the max-norm of every
-    update taken (for convergence-order checks).
+    Converged when the max-norm of the last update is below ``tol`` and the
+    residual it corrected was below ``max(tol, 10 * update)`` (the quadratic
+    regime, where the residual and the update are of one size). Returns
+    ``(x, converged, updates)`` with the max-norm of every update taken (for
+    convergence-order checks).
     """
     x = np.array(x0, dtype=float)
     updates: list[float] = []

@@ -74,7 +74,7 @@ class ContinuationConfig:
     max_period : int
         Largest period reached by branch switching at period doublings.
     newton_tol : float
-        Newton tolerance on the scaled max-norm of update and residual
+        Newton tolerance on the scaled max-norm of the update
         (state in units of ``l``, ``l w_e``, 1 rad, ``w_e``).
     """
 
