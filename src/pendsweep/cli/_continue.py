@@ -97,6 +97,9 @@ def continue_command(parameter, start, stop, alpha, fe, M_, sets, model_file, st
                        f"{sum(p['stable'] for p in pts)} stable; ends: {', '.join(ends['ends'])}")
     for bif in doc["bifurcations"]:
         click.echo(f"{bif['type']} at {parameter} = {bif['value']:.7g} {unit} (branch {bif['branch']})")
+    if start_file is None and not doc["bifurcations"] and doc["config"]["model"]["b1"] > 0:
+        click.echo("note: with Coulomb friction (b1 > 0) rest does not lose stability; the swing is a separate "
+                   "branch: start on it with --start (a sweep result or an orbit), see docs/continuation.md")
     click.echo(f"wrote {json_path}", err=True)
     if plot_path is not None:
         from ..continuation.overlay import plot_any
