@@ -17,6 +17,7 @@ import numpy as np
 
 from .backends import steps_per_period
 from .errors import ConfigError
+from .gpu import check_device, run_batch_cuda
 from .kernels import N_RECORD_COLUMNS
 from .kernels._batched import batched_periods
 from .params import ModelParams
@@ -87,6 +88,8 @@ def run_batch(
     signum: str = "step",
     chunk: int = DEFAULT_CHUNK,
     threads: int | None = None,
+    device: str = "cpu",
+    precision: str = "float64",
 ) -> BatchRun:
     """Integrate independent points of the emulated system, vectorised across points.
 
@@ -106,7 +109,13 @@ def run_batch(
     chunk : int
         Points per lockstep chunk.
     threads : int, optional
-        numba threads for this call (default: all).
+        numba threads for this call (default: all; ignored on a GPU).
+    device : {"cpu", "cuda"}
+        Where to integrate: the CPU batched kernel, or one GPU thread per
+        point (:func:`pendsweep.gpu.run_batch_cuda`; raises ``ConfigError``
+        when no CUDA GPU is usable).
+    precision : {"float64", "float32"}
+        Arithmetic on the GPU (float32 only with ``device="cuda"``; see docs/gpu.md).
 
     Returns
     -------
@@ -118,6 +127,7 @@ def run_batch(
     states = np.asarray(states, dtype=np.float64).reshape(n, 4)
     if signum not in ("step", "stage"):
         raise ConfigError(f"signum = {signum!r}; choose 'step' or 'stage'")
+    check_device(device, precision)
     for name, v, lo in (("transient_periods", transient_periods, 0), ("record_periods", record_periods, 1), ("chunk", chunk, 1)):
         if int(v) != v or v < lo:
             raise ConfigError(f"{name} = {v!r} must be an integer >= {lo}")
@@ -127,6 +137,12 @@ def run_batch(
     if n == 0:
         return BatchRun(records, states.copy(), status, done)
     steps = np.array([steps_per_period(q.fe, dt) for q in params], dtype=np.int64)
+    if device == "cuda":
+        return run_batch_cuda(
+            np.stack([q.kernel_array() for q in params]), np.array([q.alpha for q in params]),
+            np.array([q.fe for q in params]), steps, states, int(transient_periods), int(record_periods),
+            sgn_per_stage=signum == "stage", precision=precision,
+        )  # fmt: skip
     order = np.argsort(steps, kind="stable")
     p = np.ascontiguousarray(np.stack([params[i].kernel_array() for i in order], axis=1))
     alpha = np.array([params[i].alpha for i in order])
