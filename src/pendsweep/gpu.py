@@ -50,8 +50,9 @@ def cuda_unavailable_reason() -> str | None:
 
 
 def _one_line(exc: BaseException) -> str:
+    """The first sentence of an exception's message, on one line."""
     text = " ".join(str(exc).split()).strip(" :")
-    return text or type(exc).__name__
+    return text.split(". ")[0].rstrip(".") or type(exc).__name__
 
 
 def require_cuda() -> None:
@@ -72,6 +73,22 @@ def check_device(device: str, precision: str) -> None:
         raise ConfigError(f"precision = {precision!r}; choose one of {', '.join(PRECISIONS)}")
     if device == "cpu" and precision != "float64":
         raise ConfigError(f"precision = {precision!r} needs device 'cuda' (the CPU kernels are float64 only)")
+
+
+def with_device(backend: str, backend_options: dict, device: str | None) -> dict:
+    """``backend_options`` with the CLI's ``--device`` added (None: leave them as they are).
+
+    Raises :class:`ConfigError` when the backend has no device option, or
+    when ``device`` is ``"cuda"`` and no CUDA GPU is usable, so that the
+    command stops before any work.
+    """
+    if device is None or (device == "cpu" and backend != "emulated"):
+        return backend_options
+    if backend != "emulated":
+        raise ConfigError(f"--device {device} applies to the emulated backend only, not {backend!r}")
+    if device == "cuda":
+        require_cuda()
+    return {**backend_options, "device": device}
 
 
 def device_name() -> str:

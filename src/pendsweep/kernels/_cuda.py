@@ -146,7 +146,7 @@ def _emulated_periods_thread(state, params, alpha, dt, steps, table_start, table
     q = eq11_params(params[i], SGN_PER_STAGE, True)
     y, yd, th, thd = state[i, 0], state[i, 1], state[i, 2], state[i, 3]
     # Running extremes of the current period, opened with its first sample.
-    absmax, peak, yabs = fold_extremes(0.0, 0.0, 0.0, y, th)
+    absmax, peak, yabs = fold_extremes(0.0, 0.0, 0.0, y, th) if math.isfinite(th) else (0.0, 0.0, 0.0)
     total = transient_periods + out.shape[1]
     code = STATUS_OK
     periods = total
@@ -156,7 +156,10 @@ def _emulated_periods_thread(state, params, alpha, dt, steps, table_start, table
             y1, yd1, th1, thd1 = eq11_step((y, yd, th, thd), a * table[k], a * table[k + 1], a * table[k + 2], h, q)
             # The carried state keeps the kernel's precision (see the module docstring).
             y, yd, th, thd = REAL(y1), REAL(yd1), REAL(th1), REAL(thd1)
-            absmax, peak, yabs = fold_extremes(absmax, peak, yabs, y, th)
+            # A diverging point's records become NaN at the period's end; skipping its
+            # non-finite samples keeps wrap_index from converting NaN (an error in the simulator).
+            if math.isfinite(th):
+                absmax, peak, yabs = fold_extremes(absmax, peak, yabs, y, th)
         r = period - transient_periods
         if not (math.isfinite(y) and math.isfinite(yd) and math.isfinite(th) and math.isfinite(thd)):
             if r >= 0:
