@@ -105,6 +105,16 @@ class EmulatedBackend:
             for i in range(len(params))
         ]
 
+    def evidence_many(self, params, finals, firsts, scales, **schedule) -> list[tuple[np.ndarray, np.ndarray]]:
+        """The motion classifier's evidence for many points in one batched launch.
+
+        See :func:`pendsweep.batch.batched_evidence`; ``schedule`` holds its
+        keyword arguments (periods, twin separation, rest threshold).
+        """
+        from ..batch import batched_evidence
+
+        return batched_evidence(params, finals, firsts, scales, dt=self.dt, signum=self.signum, **schedule)
+
     def trace(self, params, state, periods, stride=1) -> pd.DataFrame:
         n = self.steps_per_period(params)
         state = np.ascontiguousarray(state, dtype=np.float64).copy()
