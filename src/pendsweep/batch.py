@@ -228,12 +228,16 @@ def run_lanes(
         previous = nb.get_num_threads()
         # No more threads than chunks: an idle thread only waits at the barrier.
         nb.set_num_threads(max(1, min(int(threads or previous), nb.config.NUMBA_NUM_THREADS, len(bounds) - 1)))
+        # Chunk costs differ (lanes finish or diverge early, steps differ): threads take
+        # chunks one at a time instead of a fixed share each.
+        previous_chunksize = nb.set_parallel_chunksize(1)
         try:
             batched_periods(
                 soa, p, alpha, fe, sorted_steps, lanes, signum == "stage", bounds, out, st, dn, out_stretch
             )
         finally:
             nb.set_num_threads(previous)
+            nb.set_parallel_chunksize(previous_chunksize)
     records[order] = out
     stretch[order] = out_stretch
     final = np.empty_like(states)
