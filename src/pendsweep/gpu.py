@@ -27,6 +27,8 @@ from .kernels._cuda import PRECISIONS, emulated_kernel, import_cuda
 THREADS_PER_BLOCK = 128
 #: Points per launch at most, bounding device memory (records: 64 bytes per point and recorded period).
 MAX_POINTS_PER_LAUNCH = 1 << 20
+#: Points per batch that callers hand a GPU at least (sweeps raise their task size to it).
+GPU_BATCH_POINTS = 1 << 17
 #: The devices a batched run accepts.
 DEVICES = ("cpu", "cuda")
 

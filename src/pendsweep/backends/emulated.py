@@ -10,7 +10,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import ConfigError
-from ..gpu import check_device
+from ..gpu import GPU_BATCH_POINTS, check_device
 from ..kernels import N_RECORD_COLUMNS, emulated_periods, emulated_trace
 from ..params import ModelParams
 from ..status import Status
@@ -63,6 +63,11 @@ class EmulatedBackend:
 
     def options(self) -> dict[str, Any]:
         return asdict(self)
+
+    @property
+    def min_batch_points(self) -> int:
+        """Fewest points worth one :meth:`run_points` call: a GPU needs ~1e5 threads to be busy."""
+        return GPU_BATCH_POINTS if self.device == "cuda" else 1
 
     def steps_per_period(self, params: ModelParams) -> int:
         return steps_per_period(params.fe, self.dt)

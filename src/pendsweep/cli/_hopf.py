@@ -68,13 +68,14 @@ def hopf(what, masses, methods, backend, backend_options, device, model, kick, p
     final bisection bracket, kick [rad], runs) and prints the table.
     Rerunning the same command resumes an interrupted scan.
     """
+    options = _key_value(backend_options, "--backend-option")
     config = HopfConfig(
         omega_hat=parse_values(what, "--what"),
         masses=parse_values(masses, "--M"),
         methods=tuple(m.strip() for m in methods.split(",") if m.strip()),
         model={k: _finite(k, v) for k, v in _key_value(model, "--set").items()},
         backend=backend,
-        backend_options=with_device(backend, _key_value(backend_options, "--backend-option"), device),
+        backend_options=with_device(backend, options, device or options.get("device")),
         kick=kick, periods=periods, tol=tol, alpha_max=alpha_max,
     )
     progress = sys.stderr.isatty() if progress is None else progress

@@ -114,7 +114,7 @@ def build_config(parameter: str, default_step: float, kw: dict[str, Any]) -> Swe
     backend_options = _key_value(kw["backend_opts"], "--backend-option")
     if kw["dt"] is not None:
         backend_options["dt"] = kw["dt"]
-    backend_options = with_device(kw["backend"], backend_options, kw["device"])
+    backend_options = with_device(kw["backend"], backend_options, kw["device"] or backend_options.get("device"))
     return SweepConfig(
         parameter=parameter,
         values=tuple(values),
