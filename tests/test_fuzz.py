@@ -312,6 +312,9 @@ OTHER: list[tuple[list[str], str]] = [
     (["plot", "{sweep}", "-o", "x.txt"], "'x.txt' must end in"),
     (["plot", "{sweep}", "-o", "{blocker}/x.png"], "blocker"),
     (["plot", "{sweep}", "--observable", "speed"], "'speed'"),
+    (["plot", "{model_list}"], "is not a continuation result"),
+    (["plot", "{model_binary}"], "is not a text (UTF-8) JSON file"),
+    (["plot", "{model_notjson}"], "is not valid JSON"),
     # figures
     (["figures", "fig99"], "fig99"),
     (["figures", "fig8", "-o", "{blocker}"], "blocker"),
@@ -321,6 +324,22 @@ OTHER: list[tuple[list[str], str]] = [
     # params, unknown command
     (["params", "extra"], "unexpected extra argument (extra)"),
     (["nosuch"], "No such command 'nosuch'"),
+    # continue
+    (["continue", "wobble", "--from", "0", "--to", "1"], "'wobble'"),
+    (["continue", "alpha", "--from", "abc", "--to", "1"], "'abc' is not a number"),
+    (["continue", "alpha", "--from", "0", "--to", "nan"], "'nan' is not finite"),
+    (["continue", "alpha", "--from", "0", "--to", "1", "--alpha", "5"], "fixes the continued parameter 'alpha'"),
+    (["continue", "alpha", "--from", "0", "--to", "1", "--set", "alpha=5"], "fixes the continued parameter 'alpha'"),
+    (["continue", "alpha", "--from", "0", "--to", "1", "--fe", "2", "--set", "fe=2.1"], "both fix fe"),
+    (["continue", "alpha", "--from", "0", "--to", "1", "--set", "l=abc"], "'abc'"),
+    (["continue", "alpha", "--from", "0", "--to", "1", "--model", "{model_str}"], "alpha = 'five'"),
+    (["continue", "alpha", "--from", "0", "--to", "1", "--json", "x.txt"], "'x.txt' must end in .json"),
+    (["continue", "alpha", "--from", "0", "--to", "1", "--json", "{blocker}/x.json"], "blocker"),
+    (["continue", "alpha", "--from", "0", "--to", "1", "--plot", "x.txt"], "'x.txt' must end in"),
+    (["continue", "alpha", "--from", "0", "--to", "1", "--overlay", "{hopf}"], "is a Hopf scan"),
+    (["continue", "alpha", "--from", "0", "--to", "1", "--start", "{missing}"], "missing.csv"),
+    (["continue", "alpha", "--from", "0", "--to", "1", "--start-value", "5"], "--start-value needs --start FILE"),
+    (["continue", "alpha", "--from", "0", "--to", "1", "--max-points", "0"], "0 is not in the range"),
     # hopf
     (["hopf", "--what", "abc"], "--what = 'abc'"),
     (["hopf", "--what", ""], "--what = ''"),

@@ -335,6 +335,7 @@ def _independent_tasks(config, backend, resume, n_jobs, task_points) -> tuple[li
             (i, s) for i in range(len(config.values)) for s in range(n_starts) if unit_key("none", i, s) not in resume
         ]
         threads = None if n_jobs < 1 else n_jobs
+        task_points = max(task_points, getattr(backend, "min_batch_points", 1))
         chunks = [units[k : k + task_points] for k in range(0, len(units), task_points)]
         return [functools.partial(_batched_units, config, backend, c, threads) for c in chunks], 1
     tasks = []

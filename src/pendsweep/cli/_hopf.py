@@ -13,7 +13,7 @@ from ..sweepfile import MAX_POINTS
 from ._app import PATH, FiniteFloat, LazyChoice, main
 from ._checks import check_output, key_values, model_sets
 from ._executor import apply_options, executor_options
-from ._sweep import prepare_output
+from ._sweep import DEVICE_OPTION, prepare_output
 
 #: Model parameters the scan itself sets: alpha is searched, fe follows --what, M is --M.
 SCANNED = {"alpha": "the searched amplitude", "fe": "set by --what (fe = omega_hat w_p / pi)", "M": "set by --M"}
@@ -83,6 +83,7 @@ def _all_methods() -> str:
     metavar="KEY=VALUE",
     help="Backend option (repeatable), e.g. dt=0.001 [s].",
 )
+@DEVICE_OPTION
 @click.option(
     "--set",
     "model",
@@ -137,6 +138,7 @@ def hopf(
     methods,
     backend,
     backend_options,
+    device,
     model,
     kick,
     periods,
@@ -157,6 +159,7 @@ def hopf(
     Rerunning the same command resumes an interrupted scan.
     """
     from ..executors import make_executor
+    from ..gpu import with_device
     from ..hopf import HopfConfig, hopf_metadata, run_hopf
 
     check_output(output, "-o/--output", (".parquet",))
@@ -164,13 +167,14 @@ def hopf(
     for name, why in SCANNED.items():
         if name in fixed:
             raise ConfigError(f"--set {name}={fixed[name]:g} is ignored by a Hopf scan ({name} is {why}); drop it")
+    options = key_values(backend_options, "--backend-option")
     config = HopfConfig(
         omega_hat=parse_values(what, "--what"),
         masses=parse_values(masses, "--M"),
         methods=tuple(m.strip() for m in methods.split(",") if m.strip()),
         model=fixed,
         backend=backend,
-        backend_options=key_values(backend_options, "--backend-option"),
+        backend_options=with_device(backend, options, device or options.get("device")),
         kick=kick, periods=periods, tol=tol, alpha_max=alpha_max,
     )  # fmt: skip
     default = output is None

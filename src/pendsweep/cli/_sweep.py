@@ -51,6 +51,16 @@ FIXED_OPTIONS = (
 )
 
 
+#: ``--device`` of the commands that run independent emulated points in batches.
+DEVICE_OPTION = click.option(
+    "--device",
+    type=LazyChoice(".gpu", "DEVICES"),
+    default=None,
+    help="Where batched emulated points integrate (fresh/multistart modes, Hopf simulate): cpu (default) or "
+    "cuda, one NVIDIA GPU thread per point (pip install 'pendsweep[cuda]'; -B precision=float32 opts into single precision).",
+)
+
+
 def sweep_options(default_step: float, unit: str):
     """Options shared by the parameter-sweep commands."""
 
@@ -124,6 +134,7 @@ def sweep_options(default_step: float, unit: str):
                 metavar="KEY=VALUE",
                 help="Backend option, e.g. -B signum=stage.",
             ),
+            DEVICE_OPTION,
             click.option(
                 "--dt",
                 type=STEP_S,
@@ -273,6 +284,9 @@ def build_config(parameter: str, default_step: float, kw: dict[str, Any], ctx: c
     backend_options: dict[str, Any] = key_values(kw["backend_opts"], "--backend-option")
     if kw["dt"] is not None:
         backend_options["dt"] = kw["dt"]
+    from ..gpu import with_device
+
+    backend_options = with_device(kw["backend"], backend_options, kw["device"] or backend_options.get("device"))
     return SweepConfig(
         parameter=parameter,
         values=tuple(values),
@@ -528,13 +542,30 @@ def plot_command(results, output, observable, title):
     """Draw a Fig. 11-style bifurcation diagram of one or more result files.
 
     Overlaying up, down and multistart files shows hysteresis and coexisting attractors.
+    Continuation results (.json from `pendsweep continue`) are drawn on top as branches:
+    solid stable, dashed unstable, markers at bifurcations.
     """
-    from ..plotting import plot_files
+    from ..continuation.overlay import plot_any
 
     for path in results:
-        read_sweep_metadata(path)
+        if path.suffix == ".json":
+            check_continuation_document(path)
+        else:
+            read_sweep_metadata(path)
     output = check_output(output or Path(results[0]).with_suffix(".png"), "-o/--output", FIGURE_SUFFIXES)
-    click.echo(f"plot -> {plot_files(list(results), output, observable, title)}")
+    click.echo(f"plot -> {plot_any(list(results), output, observable, title)}")
+
+
+def check_continuation_document(path: Path) -> None:
+    """Refuse a ``.json`` that is not a readable continuation result, naming it."""
+    from ..continuation.run import read_json
+
+    check_input(path, "continuation result")
+    try:
+        path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError:
+        raise ConfigError(f"{str(path)!r} is not a text (UTF-8) JSON file") from None
+    read_json(path)
 
 
 @main.command("figures")

@@ -39,5 +39,6 @@ def make_figures(names: list[str] | None, outdir: Path, quick: bool = False) -> 
     return written
 
 
-# Each module registers its figures on import (Figs. 8, 9, 11; Fig. 10; hybrid tests; stability; measured data).
-from . import core, hopf, hybrid, measured, stability  # noqa: E402, F401
+# Each module registers its figures on import (Figs. 8, 9, 11; Fig. 10; hybrid tests; stability; measured data;
+# Fig. 11 with continuation branches).
+from . import continuation, core, hopf, hybrid, measured, stability  # noqa: E402, F401
