@@ -3,7 +3,8 @@
 Every sweep unit (direction, point, start) gets one ``motion`` label:
 
 ``semi-trivial``
-    max |theta| over the record below one encoder pulse (0.0013 rad).
+    At rest: max |theta| over the record below ``rest_threshold`` (one
+    encoder pulse, 0.0013 rad, by default; :func:`at_rest`).
 ``periodic-n`` (n = 1..8)
     The stroboscopic section repeats after n forcing periods: every
     component of the normalised section differs from the one n periods
@@ -26,7 +27,7 @@ Every sweep unit (direction, point, start) gets one ``motion`` label:
     radius).
 ``transient``
     Not settled: the pendulum is still coming to rest (last recorded period
-    below one encoder pulse, earlier ones above), or the record is not
+    at rest, earlier ones not), or the record is not
     periodic but the extended record becomes
     periodic, or the Lyapunov exponent is negative beyond its uncertainty
     (still converging to an orbit), or neither a closed curve nor chaos is
@@ -60,7 +61,13 @@ from typing import Callable
 import numpy as np
 
 from .backends import PointRun
-from .kernels._layout import REC_ROTATIONS, REC_THETA_ABSMAX, REC_THETADOT_SEC, REC_Y_ABSMAX, REC_Y_SEC
+from .kernels._layout import (
+    REC_ROTATIONS,
+    REC_THETA_ABSMAX,
+    REC_THETADOT_SEC,
+    REC_Y_ABSMAX,
+    REC_Y_SEC,
+)
 from .params import ENCODER_RESOLUTION, ModelParams
 from .status import Status
 
@@ -87,6 +94,17 @@ CURVE_MAX_GAP = math.pi / 2
 
 _SEC = slice(REC_Y_SEC, REC_THETADOT_SEC + 1)  # record columns y_sec, ydot_sec, theta_sec, thetadot_sec
 _THETA = 2
+
+
+def at_rest(theta_absmax: np.ndarray | float, rest_threshold: float = ENCODER_RESOLUTION) -> bool:
+    """The one "pendulum at rest" rule: the largest |theta| [rad] of a window is below ``rest_threshold`` [rad].
+
+    ``theta_absmax`` holds per-period envelopes (record column
+    ``theta_absmax``) over the window in question; sweeps (kick in continue
+    mode), the classifier and the Hopf protocol all decide rest here, with
+    the run's ``rest_threshold`` (one encoder pulse by default).
+    """
+    return float(np.max(theta_absmax)) < rest_threshold
 
 
 @dataclass(frozen=True)
@@ -166,6 +184,7 @@ def two_trajectory_log_stretch(
     periods: int,
     scales: np.ndarray,
     d0: float = LYAP_D0,
+    rest_threshold: float = ENCODER_RESOLUTION,
 ) -> np.ndarray:
     """Per-period log separation growth of two nearby trajectories (Benettin).
 
@@ -185,8 +204,8 @@ def two_trajectory_log_stretch(
     -------
     float64[<= periods]
         ``log(|separation| / d0)`` after each period. The estimate stops
-        early when the reference pendulum comes to rest (max |theta| below
-        one encoder pulse), where Coulomb friction chatters and the
+        early when the reference pendulum comes to rest (:func:`at_rest`
+        with ``rest_threshold`` [rad]), where Coulomb friction chatters and the
         separation means nothing, or when a trajectory diverges.
     """
     reference = np.array(state, dtype=np.float64)
@@ -198,7 +217,7 @@ def two_trajectory_log_stretch(
         full = copy - reference
         full[:4] = section_difference(copy, reference, scales) * scales
         distance = float(np.linalg.norm(full[:4] / scales))
-        if swing < ENCODER_RESOLUTION or not (math.isfinite(distance) and distance > 0):
+        if at_rest(swing, rest_threshold) or not (math.isfinite(distance) and distance > 0):
             break
         out.append(math.log(distance / d0))
         copy = reference + full * (d0 / distance)
@@ -232,21 +251,23 @@ def classify_records(
     scales: np.ndarray,
     status: Status = Status.OK,
     evidence: Callable[[], Evidence] | None = None,
+    rest_threshold: float = ENCODER_RESOLUTION,
 ) -> Motion:
     """Classify one unit from its per-period records (``pendsweep.kernels.RECORD_COLUMNS``).
 
     ``evidence`` is called only when the record itself is not decisive
     (not at rest, not periodic); without it such points are ``transient``.
+    ``rest_threshold`` [rad] is the run's "at rest" limit (:func:`at_rest`).
     """
     if status is not Status.OK or not np.isfinite(records).all():
         return Motion("n/a")
-    if records[:, REC_THETA_ABSMAX].max() < ENCODER_RESOLUTION:
+    if at_rest(records[:, REC_THETA_ABSMAX], rest_threshold):
         return Motion("semi-trivial")
     rotating = bool(np.any(records[:, REC_ROTATIONS] != 0))
     n = section_period(records[:, _SEC], scales)
     if n:
         return Motion("rotating" if rotating else f"periodic-{n}", n)
-    if evidence is None or records[-1, REC_THETA_ABSMAX] < ENCODER_RESOLUTION:
+    if evidence is None or at_rest(records[-1, REC_THETA_ABSMAX], rest_threshold):
         return Motion("transient")  # undecidable here, or still coming to rest
     ev = evidence()
     lle, err = lyapunov_estimate(ev.log_stretch)
@@ -262,7 +283,9 @@ def classify_records(
     return Motion("transient", 0, lle, err)
 
 
-def backend_evidence(backend, params: ModelParams, run: PointRun, scales: np.ndarray) -> Evidence:
+def backend_evidence(
+    backend, params: ModelParams, run: PointRun, scales: np.ndarray, rest_threshold: float = ENCODER_RESOLUTION
+) -> Evidence:
     """Extend the record and estimate the Lyapunov exponent with the point's backend."""
     extension = backend.run_point(params, run.state, 0, EXTEND_PERIODS)
     sections = extension.records[:, _SEC] if extension.status is Status.OK else np.empty((0, 4))
@@ -273,12 +296,21 @@ def backend_evidence(backend, params: ModelParams, run: PointRun, scales: np.nda
 
     start = backend.initial_state(params, *run.records[0, _SEC])
     periods = max(run.records.shape[0], LYAP_MIN_PERIODS)
-    return Evidence(sections, two_trajectory_log_stretch(advance, start, periods, scales))
+    return Evidence(
+        sections, two_trajectory_log_stretch(advance, start, periods, scales, rest_threshold=rest_threshold)
+    )
 
 
-def classify_run(backend, params: ModelParams, run: PointRun) -> Motion:
-    """Classify a finished sweep point, re-simulating with its backend when needed."""
+def classify_run(backend, params: ModelParams, run: PointRun, rest_threshold: float = ENCODER_RESOLUTION) -> Motion:
+    """Classify a finished sweep point, re-simulating with its backend when needed.
+
+    ``rest_threshold`` [rad] is the run's "at rest" limit (:func:`at_rest`).
+    """
     scales = section_scales(run.records, params) if run.status is Status.OK else np.ones(4)
     return classify_records(
-        run.records, scales, run.status, lambda: backend_evidence(backend, params, run, scales)
+        run.records,
+        scales,
+        run.status,
+        lambda: backend_evidence(backend, params, run, scales, rest_threshold),
+        rest_threshold,
     )

@@ -32,18 +32,20 @@ import functools
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterable, Iterator
+from typing import Any, Callable, Iterator
 
 import numpy as np
 import pandas as pd
 
 from .backends import BACKENDS, PointRun, make_backend
-from .classify import classify_run
+from .classify import at_rest, classify_run
 from .errors import ConfigError
-from .executors import Executor, LocalExecutor
+from .executors import Executor
 from .kernels import RECORD_COLUMNS
+from .kernels._layout import REC_THETA_ABSMAX
 from .params import ENCODER_RESOLUTION, PARAM_SPECS, ModelParams, check_value
-from .results import ResultStore, run_metadata
+from .results import run_metadata
+from .scan import Finished, UnitResult, run_scan
 from .status import Status
 
 MODES = ("continue", "fresh", "multistart")
@@ -260,7 +262,15 @@ def result_rows(config: SweepConfig, r: PointResult) -> pd.DataFrame:
     return df
 
 
-def _continue_branch(config, backend, direction, indices, resume) -> Iterator[PointResult]:
+def _unit(config: SweepConfig, r: PointResult) -> UnitResult:
+    return UnitResult(r.key, result_rows(config, r), r.run.state.tolist())
+
+
+def _classified(config, backend, params, run) -> str:
+    return classify_run(backend, params, run, config.rest_threshold).label
+
+
+def _continue_branch(config, backend, direction, indices, resume) -> Iterator[UnitResult]:
     """Walk one branch, carrying the state; ``resume`` describes finished units."""
     state = None  # None: start (or restart) from config.initial
     kick_next = False
@@ -276,32 +286,17 @@ def _continue_branch(config, backend, direction, indices, resume) -> Iterator[Po
         if state is None:
             state = backend.initial_state(params, *config.initial)
         elif kick_next:
-            state = state.copy()
-            state[2] += config.kick
+            state = backend.kick(state, config.kick)
             kicked = True
         run = backend.run_point(params, state, config.transient_periods, config.record_periods)
-        yield PointResult(direction, i, 0, config.values[i], run, kicked, classify_run(backend, params, run).label)
+        yield _unit(config, PointResult(direction, i, 0, config.values[i], run, kicked, _classified(config, backend, params, run)))
         ok = run.status is Status.OK
         state = run.state if ok else None
-        kick_next = ok and float(np.nanmax(run.records[:, 1])) < config.rest_threshold
+        kick_next = ok and at_rest(run.records[:, REC_THETA_ABSMAX], config.rest_threshold)
 
 
-def _independent_point(config, backend, i, starts_done) -> list[PointResult]:
-    params = config.params_at(config.values[i])
-    initials = multistart_initials(config, i) if config.mode == "multistart" else np.array([config.initial])
-    out = []
-    for s, ic in enumerate(initials):
-        if s in starts_done:
-            continue
-        run = backend.run_point(
-            params, backend.initial_state(params, *ic), config.transient_periods, config.record_periods
-        )
-        out.append(PointResult("none", i, s, config.values[i], run, False, classify_run(backend, params, run).label))
-    return out
-
-
-def _batched_units(config, backend, units, threads) -> list[PointResult]:
-    """Independent ``(point, start)`` units in one call of the backend's batched kernel."""
+def _independent_units(config, backend, units, threads) -> list[UnitResult]:
+    """Independent ``(point, start)`` units in one :meth:`~pendsweep.backends.Backend.run_points` call."""
     params, states, initials = [], [], {}
     for i, s in units:
         params.append(config.params_at(config.values[i]))
@@ -311,36 +306,70 @@ def _batched_units(config, backend, units, threads) -> list[PointResult]:
         states.append(backend.initial_state(params[-1], *ic))
     runs = backend.run_points(params, np.array(states), config.transient_periods, config.record_periods, threads)
     return [
-        PointResult("none", i, s, config.values[i], run, False, classify_run(backend, q, run).label)
+        _unit(config, PointResult("none", i, s, config.values[i], run, False, _classified(config, backend, q, run)))
         for (i, s), q, run in zip(units, params, runs)
     ]
 
 
-def _independent_tasks(config, backend, resume, n_jobs, task_points) -> tuple[list[Callable], int]:
+def _independent_tasks(config, backend, finished: set[str], n_jobs, task_points) -> tuple[list[Callable], int]:
     """Tasks for the fresh/multistart units not yet done, and the local thread count for them.
 
-    A backend with a batched kernel (``run_points``) gets chunks of
-    ``task_points`` units, each running on all ``n_jobs`` cores; otherwise
-    there is one task per point, ``n_jobs`` at a time.
+    A batched backend (``backend.batched``) gets chunks of ``task_points``
+    units cut from the full unit list in index order, each running on all
+    ``n_jobs`` cores; a chunk with any unfinished unit is rerun whole, so a
+    resumed unit is integrated beside the same neighbours as in an
+    uninterrupted run. Otherwise there is one task per point (its
+    unfinished starts), ``n_jobs`` at a time.
     """
     n_starts = config.starts if config.mode == "multistart" else 1
-    if hasattr(backend, "run_points"):
-        units = [
-            (i, s) for i in range(len(config.values)) for s in range(n_starts) if unit_key("none", i, s) not in resume
-        ]
+    units = [(i, s) for i in range(len(config.values)) for s in range(n_starts)]
+    if backend.batched:
         threads = None if n_jobs < 1 else n_jobs
         chunks = [units[k : k + task_points] for k in range(0, len(units), task_points)]
-        return [functools.partial(_batched_units, config, backend, c, threads) for c in chunks], 1
+        todo = [c for c in chunks if any(unit_key("none", i, s) not in finished for i, s in c)]
+        return [functools.partial(_independent_units, config, backend, c, threads) for c in todo], 1
     tasks = []
     for i in range(len(config.values)):
-        starts_done = {s for s in range(n_starts) if unit_key("none", i, s) in resume}
-        if len(starts_done) < n_starts:
-            tasks.append(functools.partial(_independent_point, config, backend, i, starts_done))
+        missing = [(i, s) for s in range(n_starts) if unit_key("none", i, s) not in finished]
+        if missing:
+            tasks.append(functools.partial(_independent_units, config, backend, missing, None))
     return tasks, n_jobs
 
 
 def sweep_metadata(config: SweepConfig) -> dict[str, Any]:
     return run_metadata("sweep", config.to_dict(), backend=config.backend, seed=config.seed)
+
+
+@dataclass
+class SweepScan:
+    """A sweep as a :class:`pendsweep.scan.Scan` (units ``direction:point:start``)."""
+
+    config: SweepConfig
+    task_points: int = 256
+    row_columns: list[str] = field(default_factory=lambda: KEY_COLUMNS + ["period"])
+
+    def __post_init__(self) -> None:
+        self.backend = self.config.make_backend()
+        self.desc = self.config.parameter
+
+    def metadata(self) -> dict[str, Any]:
+        return sweep_metadata(self.config)
+
+    def n_units(self) -> int:
+        return self.config.n_units
+
+    def tasks(self, finished: Finished, n_jobs: int) -> tuple[list[Callable], int]:
+        config = self.config
+        if config.mode != "continue":
+            return _independent_tasks(config, self.backend, finished.keys, n_jobs, self.task_points)
+        resume = _resume_info(finished.rows, finished.states, config.rest_threshold)
+        return [
+            functools.partial(_continue_branch, config, self.backend, direction, indices, resume)
+            for direction, indices in config.branches()
+        ], n_jobs
+
+    def order(self, df: pd.DataFrame) -> pd.DataFrame:
+        return df.sort_values(self.row_columns, kind="stable").reset_index(drop=True)
 
 
 def run_sweep(
@@ -370,8 +399,8 @@ def run_sweep(
         Discard earlier results at ``output`` instead of resuming.
     executor : Executor, optional
         Where tasks run (:mod:`pendsweep.executors`; default: this process).
-        Fresh and multistart points on a backend with a batched kernel go in
-        tasks of ``task_points`` points; a continue branch is one task.
+        Fresh and multistart points on a batched backend go in tasks of
+        ``task_points`` points; a continue branch is one task.
 
     Returns
     -------
@@ -379,44 +408,9 @@ def run_sweep(
         One row per (direction, point, start, period), sorted; columns are
         documented in the README.
     """
-    from tqdm.auto import tqdm
-
-    backend = config.make_backend()
-    metadata = sweep_metadata(config)
-    store = ResultStore(output, metadata, KEY_COLUMNS + ["period"], overwrite=overwrite) if output is not None else None
-    done_df, done_states = store.done() if store is not None else (pd.DataFrame(), {})
-    if store is not None and store.complete:
-        return done_df
-
-    frames = [done_df] if not done_df.empty else []
-    resume = _resume_info(done_df, done_states, config.rest_threshold)
-    bar = tqdm(total=config.n_units, initial=len(resume), unit="pt", disable=not progress, desc=config.parameter)
-
-    tasks: list[Callable[[], Iterable[PointResult]]] = []
-    local_jobs = n_jobs
-    if config.mode == "continue":
-        for direction, indices in config.branches():
-            tasks.append(functools.partial(_continue_branch, config, backend, direction, indices, resume))
-    else:
-        tasks, local_jobs = _independent_tasks(config, backend, resume, n_jobs, task_points)
-
-    executor = executor or LocalExecutor()
-    try:
-        for item in executor.map_unordered(tasks, local_jobs):
-            for r in item if isinstance(item, list) else [item]:
-                rows = result_rows(config, r)
-                frames.append(rows)
-                if store is not None:
-                    store.add(rows, r.key, r.run.state.tolist())
-                bar.update(1)
-    finally:
-        bar.close()
-        if store is not None:
-            store.flush()
-    if store is not None:
-        return store.finalize()
-    df = pd.concat(frames, ignore_index=True)
-    return df.sort_values(KEY_COLUMNS + ["period"], kind="stable").reset_index(drop=True)
+    return run_scan(
+        SweepScan(config, task_points), output, n_jobs=n_jobs, progress=progress, overwrite=overwrite, executor=executor
+    )
 
 
 def _resume_info(done_df: pd.DataFrame, states: dict[str, list[float]], threshold: float) -> dict[str, dict]:
@@ -430,6 +424,6 @@ def _resume_info(done_df: pd.DataFrame, states: dict[str, list[float]], threshol
         info[key] = {
             "state": states.get(key),
             "ok": ok and states.get(key) is not None,
-            "at_rest": ok and float(g["theta_absmax"].max()) < threshold,
+            "at_rest": ok and at_rest(g["theta_absmax"].to_numpy(), threshold),
         }
     return info

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
-from typing import Any, ClassVar
+from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 import pandas as pd
@@ -13,13 +13,14 @@ from ..errors import ConfigError
 from ..kernels import N_RECORD_COLUMNS, emulated_periods, emulated_trace
 from ..params import ModelParams
 from ..status import Status
-from ._base import PointRun, register, steps_per_period
+from ._base import BackendBase, PointRun, register
+from ._batch import run_batch
 
 
 @register
 @dataclass(frozen=True)
-class EmulatedBackend:
-    """Fixed-step RK4 of the complete system.
+class EmulatedBackend(BackendBase):
+    """Fixed-step RK4 of the complete system, with a batched kernel for many points.
 
     Attributes
     ----------
@@ -33,6 +34,7 @@ class EmulatedBackend:
     """
 
     name: ClassVar[str] = "emulated"
+    batched: ClassVar[bool] = True
     dt: float = 1e-3
     signum: str = "step"
 
@@ -47,12 +49,6 @@ class EmulatedBackend:
             raise ConfigError(
                 f"forcing period 1/fe = {1 / params.fe:g} s is shorter than dt = {self.dt:g} s"
             )
-
-    def options(self) -> dict[str, Any]:
-        return asdict(self)
-
-    def steps_per_period(self, params: ModelParams) -> int:
-        return steps_per_period(params.fe, self.dt)
 
     def initial_state(self, params, y, ydot, theta, thetadot) -> np.ndarray:
         return np.array([y, ydot, theta, thetadot], dtype=np.float64)
@@ -81,8 +77,6 @@ class EmulatedBackend:
         :meth:`run_point` would (to about 1e-12 relative on periodic motion).
         ``threads`` limits the numba threads (default: all).
         """
-        from ..batch import run_batch
-
         batch = run_batch(
             params, states, transient_periods, record_periods, dt=self.dt, signum=self.signum, threads=threads
         )
