@@ -125,6 +125,7 @@ def test_scan_resumes_from_parts(tmp_path):
     for i in range(2):
         store.add(hopf_point(config, 0, i, "analytic"), f"0:{i}:analytic", [])
     store.flush()
+    store.close()  # the interrupted run ends: its lock goes
     resumed = run_hopf(config, out2)
     assert resumed.equals(full)
 

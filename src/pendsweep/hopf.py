@@ -76,7 +76,7 @@ from .kernels._layout import (
 from .kernels._mathieu import mathieu_monodromy
 from .params import ENCODER_RESOLUTION, ModelParams, check_value
 from .results import run_metadata
-from .scan import Finished, UnitResult, run_scan
+from .scan import DEFAULT_MAX_WORK, Finished, UnitResult, Work, run_scan, sample_indices
 from .status import Status
 
 METHODS = ("analytic", "floquet", "simulate")
@@ -331,6 +331,8 @@ def _simulate_row(alpha, lo, hi, g_lo, g_hi, runs, status) -> dict[str, Any]:
 
 
 # -- scans ------------------------------------------------------------------------
+#: Monodromy evaluations of one Floquet row, about (grid from 1e-3 N by 1.2x to alpha_H, then brentq).
+FLOQUET_EVALUATIONS = 100
 #: Simulate rows per task when the backend has a batched kernel (bisections run in lockstep).
 SIMULATE_TASK_ROWS = 64
 
@@ -403,8 +405,10 @@ class HopfConfig:
         if not (math.isfinite(self.rest_threshold) and self.rest_threshold >= 0):
             raise ConfigError(f"rest_threshold = {self.rest_threshold!r} rad must be a finite number >= 0")
         backend = make_backend(self.backend, **self.backend_options)
-        for i in range(len(self.omega_hat)):
-            for j in range(len(self.masses)):
+        # The checks are monotone in fe and M (fe above 1/dt, M above M2, fe inside a filter
+        # band), so the extreme frequencies and masses stand for every point.
+        for i in {int(np.argmin(self.omega_hat)), int(np.argmax(self.omega_hat))}:
+            for j in {int(np.argmin(self.masses)), int(np.argmax(self.masses))}:
                 params = self.params_at(i, j)
                 semi_trivial_response(params)
                 if "simulate" in self.methods:
@@ -508,6 +512,23 @@ class HopfScan:
     def n_units(self) -> int:
         return len(self.config.units())
 
+    def work(self) -> Work:
+        """Integration steps: simulate points x trial amplitudes x (settle + record) periods x steps.
+
+        Trial amplitudes are bounded by doubling from the first guess up to
+        ``alpha_max`` plus bisecting down to ``tol``; Floquet rows count
+        their monodromy steps (:data:`FLOQUET_EVALUATIONS` of ``floquet_steps`` each).
+        """
+        config = self.config
+        n_points = len(config.omega_hat) * len(config.masses)
+        runs = math.ceil(math.log2(config.alpha_max / config.tol)) + 2
+        sample = [config.params_at(i, j) for i in sample_indices(len(config.omega_hat))
+                  for j in sample_indices(len(config.masses), 11)]
+        steps = float(np.mean([self.backend.steps_per_period(q) for q in sample]))
+        simulate = n_points * runs if "simulate" in config.methods else 0
+        floquet = n_points * FLOQUET_EVALUATIONS * config.floquet_steps if "floquet" in config.methods else 0
+        return Work(simulate, config.settle_periods + config.periods, steps, other=floquet)
+
     def tasks(self, finished: Finished, n_jobs: int) -> tuple[list[Callable], int]:
         """Analytic and Floquet rows one task each; simulate rows of a batched backend in chunks.
 
@@ -544,6 +565,7 @@ def run_hopf(
     progress: bool = False,
     overwrite: bool = False,
     executor: Executor | None = None,
+    max_work: float | None = DEFAULT_MAX_WORK,
 ) -> pd.DataFrame:
     """Run (or resume) a Hopf-boundary scan; one row per (M, omega_hat, method).
 
@@ -552,9 +574,14 @@ def run_hopf(
     (:meth:`HopfScan.tasks` says how rows are grouped into tasks).
     Persistence, resuming and progress are those of every scan
     (:func:`pendsweep.scan.run_scan`, keyed by ``mass_point, point,
-    method``). Returns the rows sorted by mass, omega_hat and method order.
+    method``). Scans whose work estimate (:meth:`HopfScan.work`) exceeds
+    ``max_work`` integration steps are refused (None: no limit). Returns the
+    rows sorted by mass, omega_hat and method order.
     """
-    return run_scan(HopfScan(config), output, n_jobs=n_jobs, progress=progress, overwrite=overwrite, executor=executor)
+    return run_scan(
+        HopfScan(config), output, n_jobs=n_jobs, progress=progress, overwrite=overwrite, executor=executor,
+        max_work=max_work,
+    )
 
 
 def _ordered(df: pd.DataFrame, config: HopfConfig) -> pd.DataFrame:

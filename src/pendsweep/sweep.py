@@ -45,10 +45,12 @@ from .kernels import RECORD_COLUMNS
 from .kernels._layout import REC_THETA_ABSMAX
 from .params import ENCODER_RESOLUTION, PARAM_SPECS, ModelParams, check_value
 from .results import run_metadata
-from .scan import Finished, UnitResult, run_scan
+from .scan import DEFAULT_MAX_WORK, Finished, UnitResult, Work, run_scan, sample_indices
 from .status import Status
 
 MODES = ("continue", "fresh", "multistart")
+#: Most values a sweep's range may hold (checked before the grid is built).
+MAX_VALUES = 1_000_000
 DIRECTIONS = ("up", "down", "both")
 KEY_COLUMNS = ["direction", "point", "start"]
 
@@ -58,6 +60,7 @@ def value_range(start: float, stop: float, step: float | None = None, points: in
 
     With ``step`` the values are ``start + i*step`` (no accumulated rounding),
     and ``stop`` is included when it lies on the grid (to 1e-9 of a step).
+    At most :data:`MAX_VALUES` values (``ConfigError`` before anything is allocated).
     """
     for name, v in (("from", start), ("to", stop)):
         if not math.isfinite(v):
@@ -67,6 +70,7 @@ def value_range(start: float, stop: float, step: float | None = None, points: in
     if points is not None:
         if int(points) < 1:
             raise ConfigError(f"points = {points!r} must be a positive integer")
+        _check_count(int(points), f"points = {int(points)}")
         return np.linspace(start, stop, int(points))
     if not math.isfinite(step) or step == 0:
         raise ConfigError(f"step = {step!r} must be finite and non-zero")
@@ -76,8 +80,17 @@ def value_range(start: float, stop: float, step: float | None = None, points: in
             f"step = {step:g} has the wrong sign for a range from {start:g} to {stop:g}; "
             f"use step {'>' if span > 0 else '<'} 0"
         )
-    count = int(math.floor(span / step + 1e-9)) + 1
+    steps = span / step + 1e-9  # inf for extreme values: refused by the count check
+    count = math.floor(steps) + 1 if math.isfinite(steps) else math.inf
+    _check_count(count, f"the range from {start:g} to {stop:g} by {step:g}")
     return start + step * np.arange(count)
+
+
+def _check_count(count: float, what: str) -> None:
+    if not count <= MAX_VALUES:
+        raise ConfigError(
+            f"{what} gives {count:,} values; a sweep takes at most {MAX_VALUES} (use a coarser step or fewer points)"
+        )
 
 
 @dataclass(frozen=True)
@@ -149,8 +162,9 @@ class SweepConfig:
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 raise ConfigError(f"{name} = {v!r} rad must be a finite number >= 0")
-        for v in self.values:  # every point must be a valid model
-            self.params_at(v)
+        # Every value passed check_value, and ModelParams checks each field on its own,
+        # so the model at every point is valid when the base model is.
+        self.params_at(vals[0])
         self.make_backend()
 
     # -- derived ----------------------------------------------------------------
@@ -336,6 +350,18 @@ def _independent_tasks(config, backend, finished: set[str], n_jobs, task_points)
     return tasks, n_jobs
 
 
+def sweep_work(config: SweepConfig, backend) -> Work:
+    """Integration steps of a sweep: units x (transient + record) periods x steps per period.
+
+    Steps per period are averaged over up to 101 values spread over the range
+    (they change only when ``fe`` is swept). Classification may add up to
+    about 3x for points that are not periodic (extended record, Lyapunov pair).
+    """
+    steps = [backend.steps_per_period(config.params_at(config.values[i])) for i in sample_indices(len(config.values))]
+    periods = config.transient_periods + config.record_periods
+    return Work(config.n_units, periods, float(np.mean(steps)))
+
+
 def sweep_metadata(config: SweepConfig) -> dict[str, Any]:
     return run_metadata("sweep", config.to_dict(), backend=config.backend, seed=config.seed)
 
@@ -357,6 +383,9 @@ class SweepScan:
 
     def n_units(self) -> int:
         return self.config.n_units
+
+    def work(self) -> Work:
+        return sweep_work(self.config, self.backend)
 
     def tasks(self, finished: Finished, n_jobs: int) -> tuple[list[Callable], int]:
         config = self.config
@@ -381,6 +410,7 @@ def run_sweep(
     overwrite: bool = False,
     executor: Executor | None = None,
     task_points: int = 256,
+    max_work: float | None = DEFAULT_MAX_WORK,
 ) -> pd.DataFrame:
     """Run (or resume) a sweep and return its long-form results.
 
@@ -401,6 +431,9 @@ def run_sweep(
         Where tasks run (:mod:`pendsweep.executors`; default: this process).
         Fresh and multistart points on a batched backend go in tasks of
         ``task_points`` points; a continue branch is one task.
+    max_work : float or None
+        Refuse the sweep (``ConfigError``) when its estimate (:func:`sweep_work`)
+        exceeds this many integration steps; None: no limit.
 
     Returns
     -------
@@ -409,7 +442,8 @@ def run_sweep(
         documented in the README.
     """
     return run_scan(
-        SweepScan(config, task_points), output, n_jobs=n_jobs, progress=progress, overwrite=overwrite, executor=executor
+        SweepScan(config, task_points), output, n_jobs=n_jobs, progress=progress, overwrite=overwrite,
+        executor=executor, max_work=max_work,
     )
 
 
