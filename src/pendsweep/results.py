@@ -161,12 +161,19 @@ class OutputLock:
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
+                held = True
+            except OSError as exc:  # a filesystem without flock: judge by the pid written inside
+                _log.warning(f"no file locking on {str(self.path.parent)!r} ({exc.strerror}); going by the pid inside")
+                held = _alive_elsewhere(_read_holder(fd))
+            else:
+                held = False
+            if held:
                 holder = _read_holder(fd)
                 os.close(fd)
                 raise OutputLocked(
                     f"{str(output)!r} is being written by {_describe(holder)} (lock {str(self.path)!r}); "
                     "wait for it to finish or choose another output path"
-                ) from None
+                )
             # The holder may have released and removed the file between our open and flock:
             # only a lock on the file that is still at the path counts.
             try:
@@ -203,6 +210,22 @@ def _read_holder(fd: int) -> dict[str, Any]:
     except (UnicodeDecodeError, json.JSONDecodeError):
         return {}
     return holder if isinstance(holder, dict) else {}
+
+
+def _alive_elsewhere(holder: dict[str, Any]) -> bool:
+    """Whether a lock's holder may still run: another live pid on this host, or any pid on another host."""
+    pid = holder.get("pid")
+    if not isinstance(pid, int) or pid == os.getpid():
+        return False
+    if holder.get("host") != socket.gethostname():
+        return True  # cannot be checked from here
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
 
 
 def _describe(holder: dict[str, Any]) -> str:
