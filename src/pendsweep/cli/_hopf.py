@@ -11,6 +11,7 @@ from ..backends import BACKENDS
 from ..errors import ConfigError
 from ..executors import make_executor
 from ..hopf import METHODS, HopfConfig, run_hopf
+from ..params import ENCODER_RESOLUTION
 from ..sweep import value_range
 from ._app import FINITE, main
 from ._executor import apply_options, executor_options, work_options
@@ -51,7 +52,7 @@ def parse_values(text: str, what: str) -> tuple[float, ...]:
 @click.option("--tol", type=FINITE, default=0.1, show_default=True, help="Simulate: bisection bracket width [N].")
 @click.option("--alpha-max", type=FINITE, default=500.0, show_default=True,
               help="Largest forcing amplitude searched [N].")
-@click.option("--rest-threshold", type=FINITE, default=0.0013, show_default=True,
+@click.option("--rest-threshold", type=FINITE, default=ENCODER_RESOLUTION, show_default=True,
               help="Simulate: the kicked pendulum is at rest when its last period's max|theta| is below this [rad].")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
               default=Path("results/hopf.parquet"), show_default=True, help="Results parquet file (resumable).")
