@@ -59,14 +59,14 @@ def _record_bytes(df: pd.DataFrame) -> dict[str, bytes]:
 @pytest.mark.parametrize(
     "mode_args, config",
     [
-        # 320 fresh points: two batched tasks (256 + 64); the kill lands in the second.
-        (["--from", "0", "--to", "20", "--points", "320", "--mode", "fresh", "--record-periods", "4"],
-         SweepConfig("alpha", tuple(value_range(0, 20, points=320)), mode="fresh", transient_periods=300,
+        # 480 fresh points: two batched tasks (256 + 224); the kill lands in the second.
+        (["--from", "0", "--to", "20", "--points", "480", "--mode", "fresh", "--record-periods", "4"],
+         SweepConfig("alpha", tuple(value_range(0, 20, points=480)), mode="fresh", transient_periods=300,
                      record_periods=4)),
-        # 13 points x 24 seeded starts: two batched tasks (256 + 56).
-        (["--from", "20", "--to", "26", "--step", "0.5", "--mode", "multistart", "--starts", "24", "--seed", "1",
+        # 13 points x 36 seeded starts: two batched tasks (256 + 212).
+        (["--from", "20", "--to", "26", "--step", "0.5", "--mode", "multistart", "--starts", "36", "--seed", "1",
           "--record-periods", "10"],
-         SweepConfig("alpha", tuple(value_range(20, 26, 0.5)), mode="multistart", starts=24, seed=1,
+         SweepConfig("alpha", tuple(value_range(20, 26, 0.5)), mode="multistart", starts=36, seed=1,
                      transient_periods=300, record_periods=10)),
     ],
     ids=["fresh", "multistart"],
