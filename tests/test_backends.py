@@ -80,3 +80,5 @@ def test_the_fallback_is_declared_not_probed():
     assert BackendBase.batched is False
     assert BACKENDS["emulated"].batched is True
     assert BACKENDS["substructured"].batched is False
+    for cls in BACKENDS.values():  # a batched backend brings the classifier's batched evidence too
+        assert callable(getattr(cls, "evidence_many", None)) == cls.batched

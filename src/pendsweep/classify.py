@@ -56,18 +56,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, Sequence
 
 import numpy as np
 
 from .backends import PointRun
-from .kernels._layout import (
-    REC_ROTATIONS,
-    REC_THETA_ABSMAX,
-    REC_THETADOT_SEC,
-    REC_Y_ABSMAX,
-    REC_Y_SEC,
-)
+from .kernels._batched import twin_separation
+from .kernels._layout import REC_ROTATIONS, REC_THETA_ABSMAX, REC_THETADOT_SEC, REC_Y_ABSMAX, REC_Y_SEC
 from .params import ENCODER_RESOLUTION, ModelParams
 from .status import Status
 
@@ -102,7 +97,8 @@ def at_rest(theta_absmax: np.ndarray | float, rest_threshold: float = ENCODER_RE
     ``theta_absmax`` holds per-period envelopes (record column
     ``theta_absmax``) over the window in question; sweeps (kick in continue
     mode), the classifier and the Hopf protocol all decide rest here, with
-    the run's ``rest_threshold`` (one encoder pulse by default).
+    the run's ``rest_threshold`` (one encoder pulse by default). The batched
+    evidence kernel applies the same comparison (its ``rest`` argument).
     """
     return float(np.max(theta_absmax)) < rest_threshold
 
@@ -214,9 +210,9 @@ def two_trajectory_log_stretch(
     out = []
     for _ in range(periods):
         (reference, swing), (copy, _) = advance(reference), advance(copy)
-        full = copy - reference
-        full[:4] = section_difference(copy, reference, scales) * scales
-        distance = float(np.linalg.norm(full[:4] / scales))
+        full = copy - reference  # entries past the section follow along
+        section, distance = twin_separation(tuple(reference[:4]), tuple(copy[:4]), scales)
+        full[:4] = section
         if at_rest(swing, rest_threshold) or not (math.isfinite(distance) and distance > 0):
             break
         out.append(math.log(distance / d0))
@@ -246,6 +242,40 @@ def closed_curve(sections: np.ndarray, scales: np.ndarray) -> bool:
     return False
 
 
+def decided_by_record(
+    records: np.ndarray, scales: np.ndarray, status: Status = Status.OK, rest_threshold: float = ENCODER_RESOLUTION
+) -> Motion | None:
+    """The label when the record alone decides it, else None (the point needs :class:`Evidence`).
+
+    ``rest_threshold`` [rad] is the run's "at rest" limit (:func:`at_rest`).
+    """
+    if status is not Status.OK or not np.isfinite(records).all():
+        return Motion("n/a")
+    if at_rest(records[:, REC_THETA_ABSMAX], rest_threshold):
+        return Motion("semi-trivial")
+    n = section_period(records[:, _SEC], scales)
+    if n:
+        return Motion("rotating" if np.any(records[:, REC_ROTATIONS] != 0) else f"periodic-{n}", n)
+    if at_rest(records[-1, REC_THETA_ABSMAX], rest_threshold):
+        return Motion("transient")  # still coming to rest
+    return None
+
+
+def classify_with_evidence(records: np.ndarray, scales: np.ndarray, ev: Evidence) -> Motion:
+    """The label of an undecided record (:func:`decided_by_record` gave None) from its evidence."""
+    lle, err = lyapunov_estimate(ev.log_stretch)
+    if lle > LYAP_SIGMAS * err and lle > LYAP_FLOOR:
+        return Motion("chaotic", 0, lle, err)
+    if np.any(records[:, REC_ROTATIONS] != 0):
+        return Motion("rotating", 0, lle, err)
+    tail = ev.sections[-4 * MAX_PERIOD :]
+    if section_period(tail, scales) or (lle < -LYAP_SIGMAS * err and lle < -LYAP_FLOOR):
+        return Motion("transient", 0, lle, err)
+    if closed_curve(ev.sections, scales):
+        return Motion("quasi-periodic", 0, lle, err)
+    return Motion("transient", 0, lle, err)
+
+
 def classify_records(
     records: np.ndarray,
     scales: np.ndarray,
@@ -259,28 +289,12 @@ def classify_records(
     (not at rest, not periodic); without it such points are ``transient``.
     ``rest_threshold`` [rad] is the run's "at rest" limit (:func:`at_rest`).
     """
-    if status is not Status.OK or not np.isfinite(records).all():
-        return Motion("n/a")
-    if at_rest(records[:, REC_THETA_ABSMAX], rest_threshold):
-        return Motion("semi-trivial")
-    rotating = bool(np.any(records[:, REC_ROTATIONS] != 0))
-    n = section_period(records[:, _SEC], scales)
-    if n:
-        return Motion("rotating" if rotating else f"periodic-{n}", n)
-    if evidence is None or at_rest(records[-1, REC_THETA_ABSMAX], rest_threshold):
-        return Motion("transient")  # undecidable here, or still coming to rest
-    ev = evidence()
-    lle, err = lyapunov_estimate(ev.log_stretch)
-    if lle > LYAP_SIGMAS * err and lle > LYAP_FLOOR:
-        return Motion("chaotic", 0, lle, err)
-    if rotating:
-        return Motion("rotating", 0, lle, err)
-    tail = ev.sections[-4 * MAX_PERIOD :]
-    if section_period(tail, scales) or (lle < -LYAP_SIGMAS * err and lle < -LYAP_FLOOR):
-        return Motion("transient", 0, lle, err)
-    if closed_curve(ev.sections, scales):
-        return Motion("quasi-periodic", 0, lle, err)
-    return Motion("transient", 0, lle, err)
+    motion = decided_by_record(records, scales, status, rest_threshold)
+    if motion is not None:
+        return motion
+    if evidence is None:
+        return Motion("transient")  # undecidable here
+    return classify_with_evidence(records, scales, evidence())
 
 
 def backend_evidence(
@@ -302,15 +316,40 @@ def backend_evidence(
 
 
 def classify_run(backend, params: ModelParams, run: PointRun, rest_threshold: float = ENCODER_RESOLUTION) -> Motion:
-    """Classify a finished sweep point, re-simulating with its backend when needed.
+    """Classify a finished sweep point, re-simulating with its backend when needed."""
+    return classify_runs(backend, [params], [run], rest_threshold)[0]
 
-    ``rest_threshold`` [rad] is the run's "at rest" limit (:func:`at_rest`).
+
+def classify_runs(
+    backend, params: Sequence[ModelParams], runs: Sequence[PointRun], rest_threshold: float = ENCODER_RESOLUTION
+) -> list[Motion]:
+    """Classify finished points; the evidence of all undecided ones is computed together.
+
+    A batched backend (``backend.batched``) integrates every undecided
+    point's extension and Lyapunov twin in one launch (its
+    ``evidence_many``); others re-simulate point by point through
+    :func:`backend_evidence`. ``rest_threshold`` [rad] is the run's "at
+    rest" limit (:func:`at_rest`), in both paths.
     """
-    scales = section_scales(run.records, params) if run.status is Status.OK else np.ones(4)
-    return classify_records(
-        run.records,
-        scales,
-        run.status,
-        lambda: backend_evidence(backend, params, run, scales, rest_threshold),
-        rest_threshold,
-    )
+    scales = [section_scales(r.records, q) if r.status is Status.OK else np.ones(4) for q, r in zip(params, runs)]
+    motions = [decided_by_record(r.records, s, r.status, rest_threshold) for r, s in zip(runs, scales)]
+    undecided = [j for j, m in enumerate(motions) if m is None]
+    if not undecided:
+        return motions
+    if backend.batched:
+        found = backend.evidence_many(
+            [params[j] for j in undecided],
+            np.array([runs[j].state[:4] for j in undecided]),
+            np.array([runs[j].records[0, _SEC] for j in undecided]),
+            np.array([scales[j] for j in undecided]),
+            extend_periods=EXTEND_PERIODS,
+            lyapunov_periods=max(runs[undecided[0]].records.shape[0], LYAP_MIN_PERIODS),
+            d0=LYAP_D0,
+            rest=rest_threshold,
+        )
+        evidence = [Evidence(sections, stretch) for sections, stretch in found]
+    else:
+        evidence = [backend_evidence(backend, params[j], runs[j], scales[j], rest_threshold) for j in undecided]
+    for j, ev in zip(undecided, evidence):
+        motions[j] = classify_with_evidence(runs[j].records, scales[j], ev)
+    return motions

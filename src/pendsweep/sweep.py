@@ -38,11 +38,11 @@ import numpy as np
 import pandas as pd
 
 from .backends import BACKENDS, PointRun, make_backend
-from .classify import at_rest, classify_run
+from .classify import at_rest, classify_runs
 from .errors import ConfigError
 from .executors import Executor
 from .kernels import RECORD_COLUMNS
-from .kernels._layout import REC_THETA_ABSMAX
+from .kernels._layout import REC_THETA_ABSMAX, RECORD_INDEX
 from .params import ENCODER_RESOLUTION, PARAM_SPECS, ModelParams, check_value
 from .results import run_metadata
 from .scan import DEFAULT_MAX_WORK, Finished, UnitResult, Work, run_scan, sample_indices
@@ -261,19 +261,23 @@ class PointResult:
 
 
 def result_rows(config: SweepConfig, r: PointResult) -> pd.DataFrame:
-    """Long-form rows of one unit: one row per recorded period."""
-    n = r.run.records.shape[0]
-    df = pd.DataFrame(r.run.records, columns=list(RECORD_COLUMNS))
-    df["rotations"] = df["rotations"].fillna(0).astype(np.int64)
-    df.insert(0, config.parameter, r.value)
-    df.insert(1, "direction", r.direction)
-    df.insert(2, "point", np.int64(r.point))
-    df.insert(3, "start", np.int64(r.start))
-    df.insert(4, "period", np.arange(n, dtype=np.int64))
-    df["kicked"] = r.kicked
-    df["status"] = r.run.status.value
-    df["motion"] = r.motion
-    return df
+    """Long-form rows of one unit: one row per recorded period, built from whole columns."""
+    records = r.run.records
+    n = records.shape[0]
+    columns: dict[str, Any] = {
+        config.parameter: np.full(n, r.value),
+        "direction": np.full(n, r.direction, dtype=object),
+        "point": np.full(n, r.point, dtype=np.int64),
+        "start": np.full(n, r.start, dtype=np.int64),
+        "period": np.arange(n, dtype=np.int64),
+    }
+    for j, name in enumerate(RECORD_COLUMNS):
+        columns[name] = records[:, j]
+    columns["rotations"] = np.nan_to_num(records[:, RECORD_INDEX["rotations"]]).astype(np.int64)
+    columns["kicked"] = np.full(n, r.kicked)
+    columns["status"] = np.full(n, r.run.status.value, dtype=object)
+    columns["motion"] = np.full(n, r.motion, dtype=object)
+    return pd.DataFrame(columns)
 
 
 def _unit(config: SweepConfig, r: PointResult) -> UnitResult:
@@ -281,7 +285,7 @@ def _unit(config: SweepConfig, r: PointResult) -> UnitResult:
 
 
 def _classified(config, backend, params, run) -> str:
-    return classify_run(backend, params, run, config.rest_threshold).label
+    return classify_runs(backend, [params], [run], config.rest_threshold)[0].label
 
 
 def _continue_branch(config, backend, direction, indices, resume) -> Iterator[UnitResult]:
@@ -319,9 +323,10 @@ def _independent_units(config, backend, units, threads) -> list[UnitResult]:
         ic = initials[i][s] if config.mode == "multistart" else config.initial
         states.append(backend.initial_state(params[-1], *ic))
     runs = backend.run_points(params, np.array(states), config.transient_periods, config.record_periods, threads)
+    motions = classify_runs(backend, params, runs, config.rest_threshold)
     return [
-        _unit(config, PointResult("none", i, s, config.values[i], run, False, _classified(config, backend, q, run)))
-        for (i, s), q, run in zip(units, params, runs)
+        _unit(config, PointResult("none", i, s, config.values[i], run, False, motion.label))
+        for (i, s), run, motion in zip(units, runs, motions)
     ]
 
 

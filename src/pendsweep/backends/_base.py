@@ -24,6 +24,11 @@ backend must:
    chunks of many points and give each chunk all cores) or the documented
    fallback of :class:`BackendBase`, one :meth:`run_point` after another
    (``False``: scans run one point per task, several tasks in parallel).
+   A batched backend also provides ``evidence_many(params, finals, firsts,
+   scales, **schedule)``, the motion classifier's record extensions and
+   Lyapunov twins in one launch (see
+   :meth:`pendsweep.backends.EmulatedBackend.evidence_many`); for the others
+   the classifier re-simulates point by point with :meth:`run_point`.
 7. Never raise on a diverging point: report it through ``PointRun.status``.
 
 :class:`BackendBase` supplies the defaults (a state whose first four
@@ -60,7 +65,8 @@ class Backend(Protocol):
     """What sweeps, Hopf scans and the classifier may ask of a backend (module docstring)."""
 
     name: ClassVar[str]
-    #: True when :meth:`run_points` is a vectorised kernel worth whole chunks of points.
+    #: True when :meth:`run_points` is a vectorised kernel worth whole chunks of points
+    #: (and ``evidence_many`` exists, module docstring item 6).
     batched: ClassVar[bool]
 
     def validate(self, params: ModelParams) -> None: ...

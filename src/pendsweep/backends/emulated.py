@@ -14,7 +14,7 @@ from ..kernels import N_RECORD_COLUMNS, emulated_periods, emulated_trace
 from ..params import ModelParams
 from ..status import Status
 from ._base import BackendBase, PointRun, register
-from ._batch import run_batch
+from ._batch import batched_evidence, run_batch
 
 
 @register
@@ -84,6 +84,14 @@ class EmulatedBackend(BackendBase):
             PointRun(batch.records[i], batch.states[i], Status.from_code(batch.status[i]), int(batch.periods_done[i]))
             for i in range(len(params))
         ]
+
+    def evidence_many(self, params, finals, firsts, scales, **schedule) -> list[tuple[np.ndarray, np.ndarray]]:
+        """The motion classifier's evidence for many points in one batched launch.
+
+        See :func:`pendsweep.backends._batch.batched_evidence`; ``schedule``
+        holds its keyword arguments (periods, twin separation, rest threshold).
+        """
+        return batched_evidence(params, finals, firsts, scales, dt=self.dt, signum=self.signum, **schedule)
 
     def trace(self, params, state, periods, stride=1) -> pd.DataFrame:
         n = self.steps_per_period(params)
