@@ -27,7 +27,7 @@ def _python_files():
 
 def test_rk4_weighted_stage_sum_is_written_once():
     # "k1 + 2 k2 + 2 k3 + k4" in any spelling: a "+ 2.0 *" or "+ 2 *" followed by another of them.
-    pattern = re.compile(r"\+\s*2(\.0)?\s*\*\s*[\w\[\]{}.]+\s*\+\s*2(\.0)?\s*\*")
+    pattern = re.compile(r"\+\s*(2(\.0)?|two)\s*\*\s*[\w\[\]{}.]+\s*\+\s*(2(\.0)?|two)\s*\*")
     hits = [f"{p.relative_to(SRC)}:{i}" for p in _python_files() for i, line in enumerate(p.read_text().splitlines(), 1)
             if pattern.search(line)]  # fmt: skip
     files = sorted({h.split(":")[0] for h in hits})

@@ -344,6 +344,7 @@ def _independent_tasks(config, backend, finished: set[str], n_jobs, task_points)
     units = [(i, s) for i in range(len(config.values)) for s in range(n_starts)]
     if backend.batched:
         threads = None if n_jobs < 1 else n_jobs
+        task_points = max(task_points, backend.min_batch_points)
         chunks = [units[k : k + task_points] for k in range(0, len(units), task_points)]
         todo = [c for c in chunks if any(unit_key("none", i, s) not in finished for i, s in c)]
         return [functools.partial(_independent_units, config, backend, c, threads) for c in todo], 1

@@ -69,6 +69,11 @@ class Backend(Protocol):
     #: (and ``evidence_many`` exists, module docstring item 6).
     batched: ClassVar[bool]
 
+    @property
+    def min_batch_points(self) -> int:
+        """Fewest points worth one :meth:`run_points` call (scans make tasks at least this big)."""
+        ...
+
     def validate(self, params: ModelParams) -> None: ...
 
     def steps_per_period(self, params: ModelParams) -> int: ...
@@ -118,6 +123,11 @@ class BackendBase:
     """
 
     batched: ClassVar[bool] = False
+
+    @property
+    def min_batch_points(self) -> int:
+        """Fewest points worth one :meth:`run_points` call: 1 unless a device needs many."""
+        return 1
 
     def steps_per_period(self, params: ModelParams) -> int:
         """Whole steps per forcing period closest to the backend's ``dt`` [s]."""

@@ -19,6 +19,7 @@ import numba as nb
 import numpy as np
 
 from ..errors import ConfigError
+from ..gpu import check_device, run_batch_cuda
 from ..kernels import N_RECORD_COLUMNS, STATUS_OK
 from ..kernels._batched import Lanes, batched_periods
 from ..kernels._layout import SECTION_COLUMNS
@@ -91,6 +92,8 @@ def run_batch(
     signum: str = "step",
     chunk: int = DEFAULT_CHUNK,
     threads: int | None = None,
+    device: str = "cpu",
+    precision: str = "float64",
 ) -> BatchRun:
     """Integrate independent points of the emulated system, vectorised across points.
 
@@ -110,7 +113,13 @@ def run_batch(
     chunk : int
         Points per lockstep chunk.
     threads : int, optional
-        numba threads for this call (default: all).
+        numba threads for this call (default: all; ignored on a GPU).
+    device : {"cpu", "cuda"}
+        Where to integrate: the CPU batched kernel, or one GPU thread per
+        point (:func:`pendsweep.gpu.run_batch_cuda`; raises ``ConfigError``
+        when no CUDA GPU is usable).
+    precision : {"float64", "float32"}
+        Arithmetic on the GPU (float32 only with ``device="cuda"``; see docs/gpu.md).
 
     Returns
     -------
@@ -124,6 +133,14 @@ def run_batch(
     for name, v, lo in (("transient_periods", transient_periods, 0), ("record_periods", record_periods, 1), ("chunk", chunk, 1)):
         if int(v) != v or v < lo:
             raise ConfigError(f"{name} = {v!r} must be an integer >= {lo}")
+    check_device(device, precision)
+    if device == "cuda" and n:
+        return run_batch_cuda(
+            np.stack([q.kernel_array() for q in params]), np.array([q.alpha for q in params]),
+            np.array([q.fe for q in params]), np.array([steps_per_period(q.fe, dt) for q in params], dtype=np.int64),
+            np.asarray(states, dtype=np.float64).reshape(n, 4), int(transient_periods), int(record_periods),
+            sgn_per_stage=signum == "stage", precision=precision,
+        )  # fmt: skip
     schedule = LaneSchedule(
         transient=np.full(n, int(transient_periods), dtype=np.int64),
         total=np.full(n, int(transient_periods) + int(record_periods), dtype=np.int64),

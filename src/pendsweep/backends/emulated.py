@@ -10,6 +10,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import ConfigError
+from ..gpu import GPU_BATCH_POINTS, check_device
 from ..kernels import N_RECORD_COLUMNS, emulated_periods, emulated_trace
 from ..params import ModelParams
 from ..status import Status
@@ -31,24 +32,41 @@ class EmulatedBackend(BackendBase):
     signum : {"step", "stage"}
         Evaluate sgn(thetadot) in the damping once per step and hold it over
         the RK4 stages (``"step"``, the paper's choice) or at every stage.
+    device : {"cpu", "cuda"}
+        Where :meth:`run_points` (fresh and multistart sweeps, Hopf simulate
+        scans) integrates: the CPU batched kernel, or one CUDA GPU thread per
+        point (``pip install 'pendsweep[cuda]'``; see docs/gpu.md). Single
+        points (:meth:`run_point`, continue-mode branches, traces) always run
+        on the CPU.
+    precision : {"float64", "float32"}
+        Arithmetic of ``device="cuda"``; float32 is opt-in (its error is
+        measured in docs/gpu.md), the CPU kernels are float64 only.
     """
 
     name: ClassVar[str] = "emulated"
     batched: ClassVar[bool] = True
     dt: float = 1e-3
     signum: str = "step"
+    device: str = "cpu"
+    precision: str = "float64"
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.dt) and self.dt > 0):
             raise ConfigError(f"dt = {self.dt!r} s must be a positive finite step")
         if self.signum not in ("step", "stage"):
             raise ConfigError(f"signum = {self.signum!r}; choose 'step' or 'stage'")
+        check_device(self.device, self.precision)
 
     def validate(self, params: ModelParams) -> None:
         if 1.0 / params.fe < self.dt:
             raise ConfigError(
                 f"forcing period 1/fe = {1 / params.fe:g} s is shorter than dt = {self.dt:g} s"
             )
+
+    @property
+    def min_batch_points(self) -> int:
+        """Fewest points worth one :meth:`run_points` call: a GPU needs ~1e5 threads to be busy."""
+        return GPU_BATCH_POINTS if self.device == "cuda" else 1
 
     def initial_state(self, params, y, ydot, theta, thetadot) -> np.ndarray:
         return np.array([y, ydot, theta, thetadot], dtype=np.float64)
@@ -78,7 +96,8 @@ class EmulatedBackend(BackendBase):
         ``threads`` limits the numba threads (default: all).
         """
         batch = run_batch(
-            params, states, transient_periods, record_periods, dt=self.dt, signum=self.signum, threads=threads
+            params, states, transient_periods, record_periods, dt=self.dt, signum=self.signum, threads=threads,
+            device=self.device, precision=self.precision,
         )
         return [
             PointRun(batch.records[i], batch.states[i], Status.from_code(batch.status[i]), int(batch.periods_done[i]))
@@ -88,8 +107,8 @@ class EmulatedBackend(BackendBase):
     def evidence_many(self, params, finals, firsts, scales, **schedule) -> list[tuple[np.ndarray, np.ndarray]]:
         """The motion classifier's evidence for many points in one batched launch.
 
-        See :func:`pendsweep.backends._batch.batched_evidence`; ``schedule``
-        holds its keyword arguments (periods, twin separation, rest threshold).
+        See :func:`pendsweep.backends._batch.batched_evidence`; ``schedule`` holds its
+        keyword arguments (periods, twin separation, rest threshold).
         """
         return batched_evidence(params, finals, firsts, scales, dt=self.dt, signum=self.signum, **schedule)
 
