@@ -112,10 +112,10 @@ def fit_damping(data, json_out, params_out, mass, skip, plot):
         "fitted_on": str(data[0]),
         "physics": fit.physics,
         "stderr": fit.stderr,
-        "offset_rad": fit.nuisance["theta0"],
+        "offset_rad": fit.nuisance["theta_offset"],
         "stages": fit.stages,
         "envelope_error": fit.envelope_error,
-        "predictions": {p: {"envelope_error": v["envelope_error"], "offset_rad": v["nuisance"]["theta0"]} for p, v in preds.items()},
+        "predictions": {p: {"envelope_error": v["envelope_error"], "offset_rad": v["nuisance"]["theta_offset"]} for p, v in preds.items()},
     }
     click.echo(f"fitted on {data[0]} ({fit.iterations} sensitivity iterations)")
     units = {"beta1": "1/s^2", "beta2": "1/s", "beta3": "-", "L": "m"}

@@ -21,7 +21,7 @@ def extended_params(diag: Diagnosis) -> dict[str, float]:
     """The extended model as a JSON-able mapping of ModelParams fields.
 
     The nominal model with the named cause's estimate applied when it is a
-    ModelParams field; chain parameters (gain, theta0, tau, gain_Fs) and the
+    ModelParams field; chain parameters (gain, theta_offset, tau, gain_Fs) and the
     record's forcing (alpha, fe) are not model physics and are left out.
     """
     values = dict(diag.replay.nominal)
@@ -229,8 +229,8 @@ def write_report(diag: Diagnosis, outdir: Path, source: str) -> list[Path]:
         "## Extended model",
         "",
         "`extended.json` holds every ModelParams field of the extended model; run a sweep with it by "
-        "`pendsweep sweep ... --model extended.json`. Measurement-chain parameters (gain, theta0, tau, gain_Fs) are not "
-        "physics of the system and are not in the file: correct the recorded force by gain, the angle by theta0.",
+        "`pendsweep sweep ... --model extended.json`. Measurement-chain parameters (gain, theta_offset, tau, gain_Fs) are not "
+        "physics of the system and are not in the file: correct the recorded force by gain, the angle by theta_offset.",
     ]
     report = outdir / "report.md"
     report.write_text("\n".join(lines) + "\n")
