@@ -383,3 +383,103 @@ def _encoder(theta: np.ndarray, extra: dict, rng: np.random.Generator) -> np.nda
 def _lvdt(y: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     noisy = y + rng.normal(0.0, LVDT_NOISE, y.shape) + _drift(len(y), LVDT_DRIFT, rng)
     return LVDT_STEP * np.round(noisy / LVDT_STEP)
+
+
+# -- populations: random cases for calibration (seed range A) and the benchmark (seed range B) ----------
+
+#: Identifiable ranges of single effects per kind: cause -> (mode, lo, hi); the truth is
+#: nominal x U(lo, hi) ("x"), U(lo, hi) ("abs"), or the record's nominal + U(lo, hi) ("add").
+RANGES = {
+    "free_decay": {
+        "coulomb_friction": ("x", 2.0, 5.0),
+        "viscous_damping": ("x", 2.0, 5.0),
+        "quadratic_drag": ("x", 3.0, 8.0),
+        "pendulum_length": ("x", 1.03, 1.10),
+        "angle_offset": ("abs", 0.005, 0.02),
+    },
+    "forced": {
+        "oscillator_damping": ("x", 1.2, 1.5),
+        "oscillator_stiffness": ("x", 1.04, 1.10),
+        "oscillator_mass": ("x", 1.05, 1.12),
+        "spring_hardening": ("abs", 8e5, 2e6),
+        "forcing_gain": ("x", 1.05, 1.15),
+        "pendulum_length": ("x", 1.03, 1.08),
+        "angle_offset": ("abs", 0.01, 0.02),
+    },
+    "substructured": {
+        "oscillator_damping": ("x", 1.2, 1.5),
+        "oscillator_stiffness": ("x", 1.04, 1.10),
+        "oscillator_mass": ("x", 1.05, 1.12),
+        "spring_hardening": ("abs", 8e5, 2e6),
+        "forcing_gain": ("x", 1.08, 1.15),
+        "pendulum_length": ("x", 1.03, 1.08),
+        "angle_offset": ("abs", 0.07, 0.10),
+        "actuator_delay": ("add", 0.003, 0.008),
+        "platform_mass": ("x", 1.3, 1.6),
+        "platform_damping": ("x", 1.3, 1.6),
+        "force_sensor_gain": ("x", 1.15, 1.3),
+    },
+}
+#: Causes that a pendulum at rest (theta exactly constant) cannot show.
+PENDULUM_CAUSES = {"coulomb_friction", "viscous_damping", "quadratic_drag", "pendulum_length", "angle_offset"}
+#: Pairs drawn for two-effect records (effects on different parts of the model).
+PAIRS = {
+    "free_decay": [("pendulum_length", "coulomb_friction"), ("pendulum_length", "viscous_damping"), ("angle_offset", "quadratic_drag")],
+    "forced": [("oscillator_damping", "pendulum_length"), ("spring_hardening", "forcing_gain"), ("oscillator_stiffness", "angle_offset")],
+    "substructured": [("actuator_delay", "oscillator_damping"), ("platform_mass", "pendulum_length"), ("spring_hardening", "force_sensor_gain")],
+}
+#: Magnitude ranges of the out-of-vocabulary effects.
+OOV_RANGES = {
+    "encoder_nonlinearity": (0.003, 0.006),
+    "damping_drift": (1.0, 2.0),
+    "stiffness_drift": (0.05, 0.10),
+    "cubic_damping": (200.0, 500.0),
+    "servo_gain": (0.05, 0.10),
+}
+DURATION = {"free_decay": 20.0, "forced": 16.0, "substructured": 12.0}
+#: Shares of a population: clean, one effect, two effects, out of vocabulary.
+MIX = (0.2, 0.5, 0.15, 0.15)
+
+
+def truth_value(kind: str, cause: str, u: float, rate: float) -> float:
+    """The truth of ``cause`` at position ``u`` in [0, 1] of its identifiable range."""
+    mode, lo, hi = RANGES[kind][cause]
+    v = lo + u * (hi - lo)
+    if mode == "abs":
+        return v
+    if mode == "add":
+        return SERVO_DELAY + 2.0 * SERVO_ZETA / SERVO_WN + v
+    return v * nominal_values(nominal_for(kind))[EFFECTS[cause].param]
+
+
+def draw_case(seed: int, category: str | None = None, kind: str | None = None) -> tuple[str, Case]:
+    """A random case of the population: ``(category, case)``, category in clean/single/pair/oov.
+
+    Random: kind, category (shares :data:`MIX`), cause(s) and magnitude(s) within
+    the identifiable ranges, sampling rate (500 Hz or 2 kHz), initial angle
+    (forced records start at rest in a quarter of the cases: theta stays exactly 0),
+    a second or third force tone; the noise realisation is seeded by ``seed``.
+    """
+    rng = np.random.default_rng([seed, 11])
+    kind = kind or str(rng.choice(["free_decay", "forced", "substructured"]))
+    category = category or str(rng.choice(["clean", "single", "pair", "oov"], p=MIX))
+    rate = float(rng.choice([500.0, 2000.0]))
+    tones = ((5.0, 2.2), (float(rng.uniform(1.5, 3.0)), float(rng.uniform(1.1, 1.6))))
+    if rng.uniform() < 0.3:
+        tones = tones + ((float(rng.uniform(0.5, 1.5)), float(rng.uniform(2.6, 3.5))),)
+    at_rest = kind == "forced" and category in ("clean", "single") and rng.uniform() < 0.25
+    effects: dict[str, float] = {}
+    extra: dict[str, float] = {}
+    if category == "single":
+        choices = [c for c in RANGES[kind] if not (at_rest and c in PENDULUM_CAUSES)]
+        cause = str(rng.choice(choices))
+        effects[cause] = truth_value(kind, cause, rng.uniform(), rate)
+    elif category == "pair":
+        a, b = PAIRS[kind][int(rng.integers(len(PAIRS[kind])))]
+        effects = {a: truth_value(kind, a, rng.uniform(), rate), b: truth_value(kind, b, rng.uniform(), rate)}
+    elif category == "oov":
+        names = [k for k, (kinds, _) in OUT_OF_VOCABULARY.items() if kind in kinds]
+        name = str(rng.choice(names))
+        extra[name] = float(rng.uniform(*OOV_RANGES[name]))
+    theta_init = 0.0 if at_rest else float(rng.uniform(0.6, 1.5) if kind == "free_decay" else rng.uniform(0.2, 0.5))
+    return category, Case(kind, effects, extra, rate, DURATION[kind], int(seed), theta_init, tones)
