@@ -73,6 +73,8 @@ Z_MIN = 4.0
 SECOND_ROUND_RATIO = 2.0
 #: The second cause is sought among this many next-best single causes.
 PARTNERS = 3
+#: Second rounds start from this many best single causes.
+BEAM = 2
 #: Cross-validated squared error above this multiple of the floor^2 is "unexplained" (per kind).
 UNEXPLAINED_RATIO = {"free_decay": 3.0, "forced": 30.0, "substructured": 4.5}
 #: Scales of the free-decay nuisance parameters [rad], [rad/s].
@@ -572,28 +574,36 @@ def diagnose(replays: Replay | list[Replay], causes: list[str] | None = None, n_
         tests["first_round"] = _judge(problem, nominal, first, SHARE_MIN, first.causes)
         if tests["first_round"]["passed"]:
             verdict = first.cause
-    # Greedy second round from the best single cause (named or not: a single
-    # effect may fail the tests when a second one is present).
+    # Second round from the BEAM best single causes (named or not: a single
+    # effect may fail the tests when a second one is present, and the best
+    # single cause of a two-effect record need not be one of the two).
     if first is not None and len(causes) > 1 and first.error_cv**2 > SECOND_ROUND_RATIO * floor2:
-        starts = dict(nuisance, **first.values)
-        others = [c for c in causes if c != first.cause]
-        scores = dict(zip(others, pool(delayed(_score)(problem, first, c) for c in others)))
-        partners = sorted(others, key=lambda c: -scores[c])[:PARTNERS]
-        if problem.kind == "substructured" and "actuator_delay" in others and "actuator_delay" not in partners:
-            partners.append("actuator_delay")  # its data-based start matters more than a local score
-        tests["partner_scores"] = scores
-        pairs = pool(delayed(fit_model)(problem, first.causes + (c,), starts) for c in partners)
+        singles = {f.causes[0]: f for f in fits}
+        ranked = sorted(fits, key=lambda f: (f.error_cv, f.bic))[:BEAM]
+        jobs, tests["partner_scores"] = [], {}
+        for single in ranked:
+            others = [c for c in causes if c != single.cause]
+            scores = dict(zip(others, pool(delayed(_score)(problem, single, c) for c in others)))
+            partners = sorted(others, key=lambda c: -scores[c])[:PARTNERS]
+            if problem.kind == "substructured" and "actuator_delay" in others and "actuator_delay" not in partners:
+                partners.append("actuator_delay")  # its data-based start matters more than a local score
+            tests["partner_scores"][single.cause] = scores
+            jobs += [(single, c) for c in partners if not any({single.cause, c} == set(s.causes) | {p} for s, p in jobs)]
+        pairs = pool(delayed(fit_model)(problem, s.causes + (c,), dict(nuisance, **s.values)) for s, c in jobs)
         pair = min(pairs, key=lambda f: (f.error_cv, f.bic))
-        second = _judge(problem, first, pair, SECOND_SHARE_MIN, pair.causes)
+        # Judged against the better of its own two single causes.
+        base = min((singles[c] for c in pair.causes), key=lambda f: (f.error_cv, f.bic))
+        second = _judge(problem, base, pair, SECOND_SHARE_MIN, pair.causes)
         against_nominal = _judge(problem, nominal, pair, SHARE_MIN, pair.causes)
         second["against_nominal_passed"] = against_nominal["passed"]
         chain_ok = True
-        if "actuator_delay" in partners and "actuator_delay" not in pair.causes:
-            # The pair must beat the single cause with the actuator's delay freed:
+        with_delay = [f for f in pairs if set(f.causes) == {base.cause, "actuator_delay"}]
+        if with_delay and "actuator_delay" not in pair.causes:
+            # The pair must beat its single cause with the actuator's delay freed:
             # otherwise the second parameter is soaking up the actuator's model-form error.
-            chained = next(f for f in pairs if f.causes[-1] == "actuator_delay")
+            chained = with_delay[0]
             second["chain_check"] = {"single_with_delay_error": chained.error_cv, "pair_error": pair.error_cv}
-            chain_ok = pair.error_cv**2 < chained.error_cv**2 - 0.5 * (first.error_cv**2 - pair.error_cv**2)
+            chain_ok = pair.error_cv**2 < chained.error_cv**2 - 0.5 * (base.error_cv**2 - pair.error_cv**2)
         second["chain_ok"] = chain_ok
         tests["second_round"] = second
         if second["passed"] and against_nominal["passed"] and chain_ok:
