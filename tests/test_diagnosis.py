@@ -88,9 +88,9 @@ def test_decay_that_stops_early_is_coulomb_and_resting_tail_is_left_out():
     assert_estimates(js, case.effects)
 
 
-def test_single_effect_at_2khz_with_three_tones():
-    case = Case("forced", {"oscillator_stiffness": truth_value("forced", "oscillator_stiffness", 0.3, 2000.0)},
-                rate=2000.0, duration=8.0, seed=SEED + 3, theta_init=0.3, tones=((5.0, 2.2), (2.0, 1.3), (1.0, 3.1)))
+def test_single_effect_with_three_tones():
+    case = Case("forced", {"oscillator_stiffness": truth_value("forced", "oscillator_stiffness", 0.3, 500.0)},
+                rate=500.0, duration=12.0, seed=SEED + 3, theta_init=0.3, tones=((5.0, 2.2), (2.0, 1.3), (1.0, 3.1)))
     _, js = run(case)
     assert js["cause"] == "oscillator_stiffness"
     assert_estimates(js, case.effects)
@@ -140,7 +140,7 @@ def test_several_records_of_one_rig_one_answer(tmp_path):
     b2 = truth_value("free_decay", "viscous_damping", 0.5, 500.0)
     paths = []
     for k, theta_init in enumerate((0.7, 1.1, 1.5)):
-        rec = generate(Case("free_decay", {"viscous_damping": b2}, rate=500.0, seed=SEED + 10 + k, theta_init=theta_init, duration=12.0))
+        rec = generate(Case("free_decay", {"viscous_damping": b2}, rate=250.0, seed=SEED + 10 + k, theta_init=theta_init, duration=10.0))
         paths += [str(write_record(rec, tmp_path / f"r{k}.csv")[0])]
     res = CliRunner().invoke(main, ["diagnose", *paths, "--json", str(tmp_path / "v.json")])
     assert res.exit_code == 0, res.output

@@ -482,4 +482,5 @@ def draw_case(seed: int, category: str | None = None, kind: str | None = None) -
         name = str(rng.choice(names))
         extra[name] = float(rng.uniform(*OOV_RANGES[name]))
     theta_init = 0.0 if at_rest else float(rng.uniform(0.6, 1.5) if kind == "free_decay" else rng.uniform(0.2, 0.5))
-    return category, Case(kind, effects, extra, rate, DURATION[kind], int(seed), theta_init, tones)
+    duration = DURATION[kind] * (0.5 if rate > 1000.0 else 1.0)  # 2 kHz records: same samples budget halved
+    return category, Case(kind, effects, extra, rate, duration, int(seed), theta_init, tones)
