@@ -42,6 +42,7 @@ from scipy.signal import savgol_filter
 
 from ..errors import ConfigError
 from ..kernels import driven_trace, pendulum_trace, substructured_replay
+from ..params import kernel_vector
 from ..data import Record
 from .effects import nominal_values
 
@@ -58,7 +59,6 @@ MOTION_WINDOW = 0.25
 MAX_STEP = 1e-3
 #: Savitzky-Golay window for state estimates [s] (cubic).
 SMOOTH_WINDOW = 0.05
-_KERNEL_ORDER = ("m", "l", "b1", "b2", "b3", "g", "M", "C", "K", "k3")
 NUISANCE = ("theta_init", "thetadot_init")
 
 
@@ -168,7 +168,7 @@ class Replay:
         stop = self.n if stop is None else stop
         v = dict(self.nominal, **self.initial_guess)
         v.update(values)
-        p = np.array([v[k] for k in _KERNEL_ORDER], dtype=np.float64)
+        p = kernel_vector(v)
         theta_offset = v["theta_offset"]
         if self.kind == "free_decay":
             out = np.empty((stop, 2))
