@@ -59,6 +59,7 @@ import numpy as np
 from joblib import Parallel, delayed
 from scipy import stats
 from scipy.optimize import least_squares
+from threadpoolctl import threadpool_limits
 
 from ..errors import ConfigError
 from .effects import CHAIN_PARAMS, EFFECTS, applicable, effect
@@ -554,7 +555,13 @@ def diagnose(replays: Replay | list[Replay], causes: list[str] | None = None, n_
     n_jobs : int
         Candidates fitted in parallel (threads; the kernels release the GIL).
     """
-    problem = Problem(replays if isinstance(replays, list) else [replays])
+    # The fits' tall, thin SVDs run several times faster on one BLAS thread than on an
+    # oversubscribed pool (candidates are parallelised by joblib instead).
+    with threadpool_limits(1, user_api="blas"):
+        return _diagnose(Problem(replays if isinstance(replays, list) else [replays]), causes, n_jobs)
+
+
+def _diagnose(problem: Problem, causes: list[str] | None, n_jobs: int) -> Diagnosis:
     allowed = [e.cause for e in applicable(problem.kind)]
     causes = allowed if causes is None else list(causes)
     bad = [c for c in causes if c not in allowed]
