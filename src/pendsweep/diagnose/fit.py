@@ -365,17 +365,17 @@ def fit_model(problem: Problem | Replay, causes: tuple[str, ...] = (), starts: d
             stderr[p.key] = max(stderr[p.key], jk)
     block_mse, record_cv, sq_all = [], [], []
     for i, rp in enumerate(rps):
+        # Compared samples of a diverged prediction are NaN: infinite error there.
         sq = np.mean([oof[i][c] ** 2 for c in rp.channels], axis=0)
-        sq = np.where(np.isfinite(sq) | np.isnan(sq), sq, _DIVERGED**2)
+        sq[rp.eval_idx] = np.where(np.isfinite(sq[rp.eval_idx]), sq[rp.eval_idx], math.inf)
         block_mse += [float(np.mean(sq[b])) for b in rp.blocks]
         record_cv.append(float(math.sqrt(np.mean(sq[rp.eval_idx]))))
         sq_all.append(sq[rp.eval_idx])
     sq_all = np.concatenate(sq_all)
-    error_cv = float(math.sqrt(np.mean(sq_all))) if np.all(np.isfinite(sq_all)) else math.inf
-    error_fit = float(math.sqrt(np.mean(np.concatenate(
-        [rp.residuals(sims[i], rp.eval_idx) ** 2 for i, rp in enumerate(rps)]))))
-    return Fit(tuple(causes), values, stderr, error_fit if math.isfinite(error_fit) else math.inf, error_cv,
-               fold_values, np.array(block_mse), record_cv, bic, sims, oof)
+    error_cv = float(math.sqrt(np.mean(sq_all)))
+    fit_sq = np.concatenate([rp.residuals(sims[i], rp.eval_idx) ** 2 for i, rp in enumerate(rps)])
+    error_fit = float(math.sqrt(np.mean(fit_sq))) if np.all(np.isfinite(fit_sq)) else math.inf
+    return Fit(tuple(causes), values, stderr, error_fit, error_cv, fold_values, np.array(block_mse), record_cv, bic, sims, oof)
 
 
 def _score(problem: Problem, fit: Fit, cause: str) -> float:
@@ -410,10 +410,13 @@ def block_test(before: Fit, after: Fit) -> float:
     squared error; zero differences (e.g. blocks where both models are exact)
     are split between the signs instead of being dropped or breaking the test.
     """
-    d = before.block_mse - after.block_mse
-    if not np.all(np.isfinite(d)):
-        # A model that diverges on some block cannot be the better one there.
-        d = np.where(np.isfinite(d), d, np.where(np.isfinite(after.block_mse), 1.0, -1.0))
+    fb, fa = np.isfinite(before.block_mse), np.isfinite(after.block_mse)
+    with np.errstate(invalid="ignore"):
+        d = before.block_mse - after.block_mse
+    if not np.all(fb & fa):
+        # A model that diverges on a block is the worse one there (largest rank); both diverging: a tie.
+        big = 2.0 * float(np.max(np.abs(d[fb & fa]), initial=1.0))
+        d = np.where(fb & fa, d, np.where(fa, big, np.where(fb, -big, 0.0)))
     if np.all(d == 0.0):
         return 1.0
     return float(stats.wilcoxon(d, zero_method="zsplit", alternative="greater").pvalue)

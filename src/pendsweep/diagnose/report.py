@@ -227,7 +227,7 @@ def write_report(diag: Diagnosis, outdir: Path, source: str) -> list[Path]:
                 f"(needed >= {t['share_needed']:g}); block Wilcoxon p = {_fmt(t['p_value'])} (needed < {t['p_needed']:g}); "
                 f"|change| / uncertainty {zs} (needed >= {t['z_needed']:g}, same sign in every fold: "
                 f"{all(t['folds_agree'].values())}); passed: {t['passed']}"
-                + (f"; beats the single cause with the actuator delay freed: {t['chain_ok']}" if "chain_ok" in t else "")
+                + (f"; beats the single cause with the actuator delay freed: {t['chain_ok']}" if "chain_check" in t else "")
                 + ".",
             ]
     lines += ["", "## What remains", "", "Out-of-fold residual of the verdict model (peaks as multiples of the reference "
