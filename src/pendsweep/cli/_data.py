@@ -25,36 +25,41 @@ def _pairs(items: tuple[str, ...], what: str) -> dict[str, float]:
 
 
 @main.command()
-@click.argument("data", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("data", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--json", "json_out", type=click.Path(dir_okay=False, path_type=Path), help="Write the verdict JSON here.")
 @click.option("--report", "report_dir", type=click.Path(file_okay=False, path_type=Path), help="Write report.md, figures and extended.json into this folder.")
 @click.option("--horizon", type=FINITE, default=None, help="Short-horizon segment length for forced and substructured records [s] (default 4).")
-@click.option("--train-fraction", type=FINITE, default=0.6, show_default=True, help="Leading fraction of the record used for fitting [-].")
+@click.option("--folds", type=click.IntRange(2, 20), default=5, show_default=True, help="Cross-validation folds of one record [-] (several records: leave one record out).")
 @click.option("--cause", "causes", multiple=True, help="Restrict the candidates to these causes (repeatable).")
 @click.option("--jobs", type=click.IntRange(1, 256), default=1, show_default=True, help="Candidates fitted in parallel (threads).")
-@click.option("--model", "model_file", type=click.Path(dir_okay=False, path_type=Path), help="JSON of ModelParams fields replacing the record's nominal model (e.g. from fit-damping --params-out).")
-def diagnose(data, json_out, report_dir, horizon, train_fraction, causes, jobs, model_file):
-    """Compare a measured record with its nominal model and name the missing effect.
+@click.option("--model", "model_file", type=click.Path(dir_okay=False, path_type=Path), help="JSON of ModelParams fields replacing the records' nominal model (e.g. from fit-damping --params-out).")
+def diagnose(data, json_out, report_dir, horizon, folds, causes, jobs, model_file):
+    """Compare measured records with their nominal model and name the missing effect.
 
-    DATA is a format-v1 record (.csv with a .json sidecar, or .parquet) or a
-    raw free-swing .txt file. Prints the verdict JSON.
+    DATA is one or more format-v1 records (.csv with a .json sidecar, or
+    .parquet) or raw free-swing .txt files. Several records are taken as one
+    rig: physical parameters are fitted jointly (initial states and
+    measurement-chain parameters per record) and validated by leave-one-record-out
+    prediction. Prints the verdict JSON.
     """
     from ..data import read_record
     from ..diagnose import Replay, diagnose as run
     from ..diagnose.report import write_report
 
-    record = read_record(data)
+    records = [read_record(p) for p in data]
     if model_file is not None:
         from ._sweep import load_model_file
 
-        record.params = record.params.replace(**load_model_file(model_file))
-    diag = run(Replay(record, horizon, train_fraction), list(causes) or None, n_jobs=jobs)
+        override = load_model_file(model_file)
+        for record in records:
+            record.params = record.params.replace(**override)
+    diag = run([Replay(r, horizon, folds) for r in records], list(causes) or None, n_jobs=jobs)
     text = json.dumps(diag.to_json(), indent=1)
     if json_out:
         json_out.parent.mkdir(parents=True, exist_ok=True)
         json_out.write_text(text + "\n")
     if report_dir:
-        write_report(diag, report_dir, str(data))
+        write_report(diag, report_dir, ", ".join(map(str, data)))
     click.echo(text)
 
 
@@ -112,10 +117,10 @@ def fit_damping(data, json_out, params_out, mass, skip, plot):
         "fitted_on": str(data[0]),
         "physics": fit.physics,
         "stderr": fit.stderr,
-        "offset_rad": fit.nuisance["theta0"],
+        "offset_rad": fit.nuisance["theta_offset"],
         "stages": fit.stages,
         "envelope_error": fit.envelope_error,
-        "predictions": {p: {"envelope_error": v["envelope_error"], "offset_rad": v["nuisance"]["theta0"]} for p, v in preds.items()},
+        "predictions": {p: {"envelope_error": v["envelope_error"], "offset_rad": v["nuisance"]["theta_offset"]} for p, v in preds.items()},
     }
     click.echo(f"fitted on {data[0]} ({fit.iterations} sensitivity iterations)")
     units = {"beta1": "1/s^2", "beta2": "1/s", "beta3": "-", "L": "m"}
