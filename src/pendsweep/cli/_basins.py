@@ -91,6 +91,7 @@ def _progress(flag: bool | None) -> bool:
 @click.option("--thetadot", "thetadot_range", default=None, metavar="A:B", help="Initial thetadot interval [rad/s] (default +-omega_p).")
 @click.option("--max-periods", type=int, default=1000, show_default=True, help="Forcing periods after which a start counts as unsettled.")
 @click.option("--round-periods", type=int, default=25, show_default=True, help="Forcing periods between settling checks.")
+@click.option("--tol", type=FINITE, default=None, help="Settling tolerance on the normalised section [~rad] (default 1e-3 emulated, 0.01 other backends).")
 @click.option("--backend", type=click.Choice(sorted(BACKENDS)), default="emulated", show_default=True, help="Simulation backend (substructured: with its noise, one start at a time).")
 @click.option("-B", "--backend-option", "backend_opts", multiple=True, metavar="KEY=VALUE", help="Backend option, e.g. -B force_noise=0.3.")
 @click.option("--dt", type=FINITE, default=None, help="Integration / controller step [s] (default 0.001).")
@@ -148,6 +149,7 @@ def basins_command(parameter, start, stop, step, points, **kw):
         thetadot_range=_interval(kw["thetadot_range"], "thetadot", "rad/s"),
         max_periods=kw["max_periods"],
         round_periods=kw["round_periods"],
+        tol=kw["tol"],
         backend=kw["backend"],
         backend_options=backend_options,
     )
