@@ -175,6 +175,14 @@ def test_settling_rotation_number_and_rest():
     assert found.period[0] == 3 and found.turns[0] == 2
     assert found.rotation_number[0] == pytest.approx(2 / 3)
     assert found.motion[0] == "rotating"
+    # A quasi-periodic rotation: one turn every period, section never repeating.
+    drift = np.stack([np.zeros(120), np.zeros(120), np.angle(np.exp(1j * 0.37 * np.arange(120) ** 1.01)),
+                      5 + np.sin(np.arange(120))], axis=1)
+    found = settling(_records(drift, np.ones(120)), np.ones(4))
+    assert found.settled[0] and found.period[0] == 0 and found.rotation_number[0] == 1
+    assert found.motion[0] == "rotating"
+    tumbling = np.tile([1, 1, 0, 1, -1], 24)  # reverses and skips turns: not steady
+    assert not settling(_records(drift, tumbling), np.ones(4)).settled[0]
     rest = _records(np.zeros((30, 4)))
     rest[:, 1] = 1e-4
     assert settling(rest, np.ones(4)).motion[0] == "semi-trivial"

@@ -17,6 +17,12 @@ for settled: it would have to stay within 1e-3 of it for 24 periods, while
 the chaotic saddle's Lyapunov exponent (about 0.2-0.6 per period here)
 stretches a deviation by e^5 to e^14 over that time.
 
+A rotating orbit whose section does not repeat within 8 periods (a
+quasi-periodic rotation, or a cycle longer than 8) is recognised by a
+*steady rotation number* instead: the same nonzero number of turns in each
+of the last :data:`ROTATION_WINDOW` periods. It is reported with period 0.
+Chaotic tumbling reverses or skips turns irregularly and does not pass.
+
 :func:`settling` does this for many runs at once (vectorised over a leading
 axis) and also returns *when* each run settled: the first period of the
 stretch, ending at the record's end, over which the repeat holds. It is the
@@ -46,6 +52,8 @@ from .params import ENCODER_RESOLUTION
 SETTLE_TOL = PERIODIC_TOL
 #: Periods over which the repeat must hold [forcing periods] (>= 2 * MAX_PERIOD + 1: two repeats).
 SETTLE_WINDOW = 24
+#: Periods of constant, nonzero turns per period that make a steady rotation [forcing periods].
+ROTATION_WINDOW = 100
 #: A run repeating after n periods whose section comes within this many ``tol`` of repeating after a
 #: divisor d of n is still converging to the shorter cycle (a slowly contracting spiral): not settled yet.
 AMBIGUITY_FACTOR = 10.0
@@ -63,9 +71,11 @@ class Settling:
     ----------
     settled : bool[k]
     period : int64[k]
-        Cycle length ``n`` in forcing periods (0 when not settled).
+        Cycle length ``n`` in forcing periods (0 when not settled, and for
+        a steady rotation without a repeating section).
     turns : int64[k]
-        Net full rotations over one cycle (signed; 0 for swinging orbits).
+        Net full rotations over one cycle (signed; 0 for swinging orbits);
+        turns per period for a steady rotation.
     onset : int64[k]
         Index of the first record row of the settled stretch, which runs to
         the end of the record: the section after ``onset + 1`` periods
@@ -90,7 +100,7 @@ class Settling:
     @property
     def rotation_number(self) -> np.ndarray:
         """Turns per forcing period (0 where not settled) [1/period]."""
-        return np.where(self.period > 0, self.turns / np.maximum(self.period, 1), 0.0)
+        return np.where(self.settled, self.turns / np.maximum(self.period, 1), 0.0)
 
     @property
     def motion(self) -> np.ndarray:
@@ -131,6 +141,7 @@ def settling(
     window: int = SETTLE_WINDOW,
     max_period: int = MAX_PERIOD,
     rest_threshold: float = ENCODER_RESOLUTION,
+    rotation_window: int = ROTATION_WINDOW,
 ) -> Settling:
     """Whether each run's record ends settled on a periodic (or rotating) orbit.
 
@@ -152,6 +163,10 @@ def settling(
     rest_threshold : float
         Settled runs whose max |theta| over the window is below this [rad]
         are at rest (semi-trivial). The default is one encoder pulse.
+    rotation_window : int
+        A run not periodic to ``tol`` whose last ``rotation_window`` periods
+        each hold the same nonzero number of turns is a steady rotation
+        (settled, period 0). Records shorter than this cannot show one.
 
     Returns
     -------
@@ -208,6 +223,17 @@ def settling(
         last_break = np.where(broken.any(axis=1), broken.shape[1] - 1 - np.argmax(broken[:, ::-1], axis=1), -1)
         onset[new] = last_break + 1
         turns[new] = np.rint(rotations[new, periods - n :].sum(axis=1)).astype(np.int64)
+    if periods >= rotation_window:
+        tail = rotations[:, periods - rotation_window :]
+        steady = ~settled & ~deferred & (tail == tail[:, -1:]).all(axis=1) & (tail[:, -1] != 0)
+        steady_rows = np.flatnonzero(steady)
+        if steady_rows.size:
+            settled[steady_rows] = True
+            turns[steady_rows] = np.rint(rotations[steady_rows, -1]).astype(np.int64)
+            changed = rotations[steady_rows] != rotations[steady_rows, -1:]
+            onset[steady_rows] = np.where(
+                changed.any(axis=1), periods - np.argmax(changed[:, ::-1], axis=1), 0
+            )
     swing = np.fmax.reduce(rec[:, first:, REC_THETA_ABSMAX], axis=1)  # NaN rows ignored
     at_rest = settled & (swing < rest_threshold)
     return Settling(settled, period, turns, onset, at_rest, deferred & ~settled)
@@ -222,12 +248,15 @@ class Attractor:
     motion : str
         ``semi-trivial``, ``periodic-n`` or ``rotating``.
     period : int
-        Cycle length [forcing periods].
+        Cycle length [forcing periods]; 0 for a steady rotation whose
+        section does not repeat within ``MAX_PERIOD``.
     turns : int
-        Net rotations per cycle (signed; the sense of a rotating orbit).
-    cycle : float64[period, 4]
+        Net rotations per cycle (per period when ``period`` is 0; signed:
+        the sense of a rotating orbit).
+    cycle : float64[max(period, 1), 4]
         Section points ``(y [m], ydot [m/s], theta [rad], thetadot [rad/s])``
-        of the cycle, from the representative run.
+        of the cycle, from the representative run (for period 0: its last
+        section point).
     scales : float64[4]
         The representative run's section divisors.
     """
@@ -240,12 +269,15 @@ class Attractor:
 
     @property
     def rotation_number(self) -> float:
-        return self.turns / self.period
+        """Turns per forcing period."""
+        return self.turns / max(self.period, 1)
 
     def mirror_of(self, other: "Attractor", tol: float = MATCH_TOL) -> bool:
         """Whether ``other`` is this attractor's image under theta -> -theta (same y)."""
         if other.period != self.period or other.turns != -self.turns:
             return False
+        if self.period == 0:  # steady rotations are identified by their rotation number alone
+            return True
         image = other.cycle * np.array([1.0, 1.0, -1.0, -1.0])
         return bool(cycle_distance(self.cycle[None], image, self.scales)[0] < tol)
 
@@ -315,7 +347,9 @@ def identify_attractors(
     def assign(a_id: int) -> None:
         a = attractors[a_id]
         same = np.flatnonzero(todo & (period == a.period) & (turns == a.turns) & (labels < 0))
-        if same.size:
+        if same.size and a.period == 0:  # steady rotations: one attractor per rotation number
+            labels[same] = a_id
+        elif same.size:
             d = cycle_distance(cycles[same, : a.period], a.cycle, a.scales)
             labels[same[d < tol]] = a_id
 
@@ -329,7 +363,7 @@ def identify_attractors(
         r = int(remaining[0])
         n = int(period[r])
         attractors.append(
-            Attractor(motion_label(False, n, int(turns[r])), n, int(turns[r]), cycles[r, :n].copy(), scales[r].copy())
+            Attractor(motion_label(False, n, int(turns[r])), n, int(turns[r]), cycles[r, : max(n, 1)].copy(), scales[r].copy())
         )
         assign(len(attractors) - 1)
         labels[r] = len(attractors) - 1  # always matches itself; guards against NaN sections

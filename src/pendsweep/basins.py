@@ -43,7 +43,7 @@ from typing import Any, Callable, Protocol
 import numpy as np
 import pandas as pd
 
-from .attractors import MATCH_TOL, SETTLE_TOL, SETTLE_WINDOW, Attractor, cycle_distance, identify_attractors, repeat_mask, settling
+from .attractors import MATCH_TOL, ROTATION_WINDOW, SETTLE_TOL, SETTLE_WINDOW, Attractor, cycle_distance, identify_attractors, repeat_mask, settling
 from .errors import ConfigError
 from .classify import MAX_PERIOD
 from .kernels._layout import REC_THETA_ABSMAX, REC_THETADOT_SEC, REC_Y_ABSMAX, REC_Y_SEC
@@ -60,7 +60,6 @@ NOISY_SETTLE_TOL = 0.01
 ESCAPE_MIN_EVENTS = 20
 
 _SEC = slice(REC_Y_SEC, REC_THETADOT_SEC + 1)
-_HISTORY = SETTLE_WINDOW + MAX_PERIOD  # record rows kept across rounds (the settled stretch's start lies inside)
 
 
 class StroboscopicMap(Protocol):
@@ -246,7 +245,7 @@ def settle_runs(
     k = states.shape[0]
     ids = np.arange(k, dtype=np.int64) if ids is None else np.asarray(ids, dtype=np.int64)
     window = settle_options.get("window", SETTLE_WINDOW)
-    history_rows = window + settle_options.get("max_period", MAX_PERIOD)
+    history_rows = max(window + settle_options.get("max_period", MAX_PERIOD), settle_options.get("rotation_window", ROTATION_WINDOW))
     out = SettledRuns(
         status=np.zeros(k, dtype=np.int64),
         settled=np.zeros(k, dtype=bool),
@@ -299,11 +298,12 @@ def settle_runs(
         out.at_rest[idx] = ok & found.at_rest[f]
         out.settle_periods[idx] = np.where(ok, first_row + found.onset[f] + 1, -1)
         near_onset = near_since[idx, np.maximum(found.period[f], 1) - 1] + 1
+        near_onset = np.where(found.period[f] > 0, near_onset, out.settle_periods[idx])  # steady rotation: no cycle
         out.escape_periods[idx] = np.where(ok, np.minimum(near_onset, out.settle_periods[idx]), -1)
         out.scales[idx] = scales[f]
         out.theta_absmax[idx] = np.fmax.reduce(buffer[f, -window:, REC_THETA_ABSMAX], axis=1)
         for j, i in zip(f[ok], idx[ok]):
-            n = found.period[j]
+            n = max(int(found.period[j]), 1)
             out.cycle[i, :n] = buffer[j, buffer.shape[1] - n :, _SEC]
         keep = ~finished
         active = active[keep]
@@ -596,7 +596,8 @@ class BasinConfig:
         d["thetadot_range"] = None if self.thetadot_range is None else list(self.thetadot_range)
         d["model"] = ModelParams.from_mapping(self.model).to_dict()
         d["backend_options"] = self.make_backend().options()
-        d["settle"] = {"window": SETTLE_WINDOW, "max_period": MAX_PERIOD, "match_tol": MATCH_TOL}
+        d["settle"] = {"window": SETTLE_WINDOW, "max_period": MAX_PERIOD, "match_tol": MATCH_TOL,
+                       "rotation_window": ROTATION_WINDOW}
         return d
 
 
@@ -782,7 +783,7 @@ def scan_summary(config: BasinConfig, df: pd.DataFrame) -> tuple[dict[str, Any],
             for g, b in previous:
                 if g in taken or b.period != a.period or b.turns != a.turns or b.motion != a.motion:
                     continue
-                d = float(cycle_distance(a.cycle[None], b.cycle, a.scales)[0])
+                d = 0.0 if a.period == 0 else float(cycle_distance(a.cycle[None], b.cycle, a.scales)[0])
                 if d < best_d:
                     best, best_d = g, d
             if best is None:

@@ -48,10 +48,10 @@ def plot_basin(rows: pd.DataFrame, summary: dict[str, Any], config: BasinConfig,
     """Basin map over (theta0, thetadot0) coloured by attractor, and the survival curves."""
     fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4.6), constrained_layout=True)
     table = summary["attractors"]
-    names = [f"{a['motion']}" + (f" {a['rotation_number']:+g}/T" if a["motion"] == "rotating" else "")
+    names = [f"{a['motion']}" + (f" {a['rotation_number']:+g} turn/T, cycle {a['period']}T" if a["motion"] == "rotating" else "")
              + f" ({100 * a['fraction']:.1f}%)" for a in table]
-    palette = plt.get_cmap("tab10").colors
-    colours = [palette[i % 10] for i in range(len(table))] + ["tab:red"]
+    palette = [c for i, c in enumerate(plt.get_cmap("tab10").colors) if i not in (3, 7)]  # red, grey: kept for unsettled
+    colours = [palette[i % len(palette)] for i in range(len(table))] + ["tab:red"]
     ids = rows["attractor"].to_numpy()
     index = np.where(ids < 0, len(table), ids)
     if config.sampling == "grid":
