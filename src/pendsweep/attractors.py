@@ -356,15 +356,37 @@ def identify_attractors(
     for a_id, a in enumerate(attractors):
         if a.motion != "semi-trivial":
             assign(a_id)
-    while True:
-        remaining = np.flatnonzero(todo & (labels < 0))
-        if remaining.size == 0:
-            break
-        r = int(remaining[0])
-        n = int(period[r])
-        attractors.append(
-            Attractor(motion_label(False, n, int(turns[r])), n, int(turns[r]), cycles[r, : max(n, 1)].copy(), scales[r].copy())
-        )
-        assign(len(attractors) - 1)
-        labels[r] = len(attractors) - 1  # always matches itself; guards against NaN sections
+    # Periodic runs first, so that a steady rotation can join the periodic rotation it is approaching.
+    for periodic in (True, False):
+        while True:
+            remaining = np.flatnonzero(todo & (labels < 0) & ((period > 0) == periodic))
+            if remaining.size == 0:
+                break
+            r = int(remaining[0])
+            n = int(period[r])
+            if n == 0:
+                joined = _join_periodic_rotation(cycles[remaining, 0], turns[remaining], attractors, tol)
+                labels[remaining] = joined
+                if (joined >= 0).all():
+                    break
+                r = int(remaining[joined < 0][0])
+            attractors.append(
+                Attractor(motion_label(False, n, int(turns[r])), n, int(turns[r]), cycles[r, : max(n, 1)].copy(), scales[r].copy())
+            )
+            assign(len(attractors) - 1)
+            labels[r] = len(attractors) - 1  # always matches itself; guards against NaN sections
     return labels, attractors
+
+
+def _join_periodic_rotation(points: np.ndarray, turns: np.ndarray, attractors: list[Attractor], tol: float) -> np.ndarray:
+    """For steady rotations (one section point each, ``turns`` per period): the periodic rotating
+    attractor with the same rotation number whose cycle passes within ``tol`` of the point, else -1."""
+    out = np.full(len(points), -1, dtype=np.int64)
+    for a_id, a in enumerate(attractors):
+        if a.motion != "rotating" or a.period == 0:
+            continue
+        same = np.flatnonzero((out < 0) & (turns == a.rotation_number))
+        if same.size:
+            d = np.abs(section_difference(points[same, None, :], a.cycle[None], a.scales)).max(axis=2).min(axis=1)
+            out[same[d < tol]] = a_id
+    return out

@@ -16,9 +16,30 @@ from ..errors import ConfigError, ParameterError
 from ..params import PARAM_SPECS
 from ._app import FINITE, main
 from ._executor import apply_options, executor_options
-from ._sweep import _finite, _key_value, load_model_file
+from ._sweep import load_model_file
 
 _MODEL_FLAGS = (("alpha", "alpha", "N"), ("fe", "fe", "Hz"), ("M", "M_", "kg"), ("C", "C_", "kg/s"), ("K", "K_", "N/m"))
+
+
+def _key_value(pairs: tuple[str, ...], what: str) -> dict[str, str]:
+    """``NAME=VALUE`` pairs as a dict of strings."""
+    out = {}
+    for pair in pairs:
+        if "=" not in pair:
+            raise ConfigError(f"{what} {pair!r} must look like NAME=VALUE")
+        k, v = pair.split("=", 1)
+        out[k.strip()] = v.strip()
+    return out
+
+
+def _finite(name: str, text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise ParameterError(f"{name} = {text!r} is not a number") from None
+    if not math.isfinite(value):
+        raise ParameterError(f"{name} = {text!r} is not finite; give a finite number")
+    return value
 
 
 def _model_options(axis_values: bool):

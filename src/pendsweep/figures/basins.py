@@ -92,7 +92,7 @@ def plot_scan(summary: dict[str, Any], output: Path) -> Path:
     """Stacked basin fractions per motion class against the parameter, and the unsettled fraction after 100 periods."""
     values = np.asarray(summary["values"])
     classes = sorted(summary["classes"], key=lambda c: list(CLASS_COLOURS).index(c) if c in CLASS_COLOURS else 99)
-    fig, ax = plt.subplots(figsize=(8, 4.6), constrained_layout=True)
+    fig, ax = plt.subplots(figsize=(10, 4.6), constrained_layout=True)
     ax.stackplot(values, [summary["classes"][c] for c in classes], labels=classes,
                  colors=[_colour(c) for c in classes], alpha=0.85)
     for key, style, label in (("unsettled_after_100", "k-", "unsettled (to 1e-3) after 100 periods"),
@@ -103,7 +103,7 @@ def plot_scan(summary: dict[str, Any], output: Path) -> Path:
     ax.set_ylim(0, 1)
     ax.set_xlabel(f"{summary['parameter']}")
     ax.set_ylabel("fraction of starts (basin)")
-    ax.legend(fontsize=7, loc="lower left", framealpha=0.85)
+    ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.01, 0.5))
     fig.savefig(output, dpi=150)
     plt.close(fig)
     return output
