@@ -11,7 +11,7 @@ from pendsweep.batch import chunk_bounds, run_batch
 from pendsweep.classify import classify_run
 from pendsweep.errors import ConfigError
 from pendsweep.kernels import RECORD_COLUMNS, STATUS_DIVERGED, STATUS_OK
-from pendsweep.kernels._batched import _step_chunk
+from pendsweep.kernels._batched import _N_CONST, _step_chunk
 from pendsweep.kernels._sincos import sincos_poly
 from pendsweep.params import TABLE_IV
 from pendsweep.status import Status
@@ -66,7 +66,7 @@ def test_inner_loop_is_vectorised():
     """LLVM turns the per-point loop into packed AVX(-512) double arithmetic."""
     fn = nb.njit(error_model="numpy", fastmath={"contract"})(_step_chunk.py_func)
     n = 16
-    fn(*[np.zeros(n) for _ in range(7)], np.ones((17, n)), 0.0, False, True, 0.0, 0.0, 0.0)
+    fn(*[np.zeros(n) for _ in range(7)], np.ones((_N_CONST, n)), np.zeros((3, n)), True, 0.0, 0.0, 0.0, False)
     asm = next(iter(fn.inspect_asm().values()))
     packed = re.findall(r"\bv(?:fmadd|fnmadd|fmsub|mul|add|sub|div)\d*pd\s+%?[yz]mm", asm)
     assert len(packed) > 100, f"only {len(packed)} packed ymm/zmm double instructions"
@@ -244,3 +244,23 @@ def test_concurrent_batches_from_threads_equal_sequential_ones():
         concurrent = list(pool.map(lambda b: run_batch(b, states, 3, 2).records, batches))
     for a, b in zip(sequential, concurrent):
         np.testing.assert_array_equal(a, b)
+
+
+def test_a_point_does_not_depend_on_its_chunk_neighbours():
+    """Bit-identical records alone, among equal-fe points, and among other fe at another position.
+
+    This is what makes a resumed sweep identical to an uninterrupted one: which
+    other points share a launch depends on what was already done.
+    """
+    target = TABLE_IV.replace(alpha=12.0, fe=2.2)  # irregular for these periods: amplifies any difference
+    start = np.array([[0.0, 0.0, 0.7, 0.0]])
+    alone = run_batch([target], start, 10, 10)
+    same_fe = [TABLE_IV.replace(alpha=a, fe=2.2) for a in (3.0, 8.0, 15.0)]
+    other_fe = [TABLE_IV.replace(alpha=a, fe=f) for a, f in ((5.0, 2.5), (9.0, 2.3), (20.0, 2.7))]
+    for neighbours, position in ((same_fe, 2), (other_fe, 1), (same_fe + other_fe, 5)):
+        params = neighbours[:position] + [target] + neighbours[position:]
+        states = np.repeat(np.array([[0.0, 0.0, 0.3, 0.0]]), len(params), axis=0)
+        states[position] = start[0]
+        run = run_batch(params, states, 10, 10, chunk=4)
+        np.testing.assert_array_equal(run.records[position], alone.records[0])
+        np.testing.assert_array_equal(run.states[position], alone.states[0])

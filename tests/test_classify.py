@@ -19,6 +19,7 @@ from pendsweep.classify import (
 from pendsweep.params import FIG9_CO, FIG9_PO, FIG11A
 from pendsweep.status import Status
 from pendsweep.sweep import SweepConfig, run_sweep
+from pendsweep.kernels._layout import RECORD_INDEX as REC, SECTION_COLUMNS
 
 UNIT = np.ones(4)  # constructed sections are already dimensionless
 RECORD = 20
@@ -28,10 +29,10 @@ def records_from(states, rotations=0.0):
     """Per-period records whose section is ``states`` (k, 4) and envelope |theta| + 0.1."""
     states = np.asarray(states, dtype=float)
     rec = np.zeros((states.shape[0], 8))
-    rec[:, 2:6] = states
-    rec[:, 1] = np.abs(states[:, 2]) + 0.1
-    rec[:, 6] = 1.0
-    rec[:, 7] = rotations
+    rec[:, SECTION_COLUMNS] = states
+    rec[:, REC["theta_absmax"]] = np.abs(states[:, 2]) + 0.1
+    rec[:, REC["y_absmax"]] = 1.0
+    rec[:, REC["rotations"]] = rotations
     return rec
 
 

@@ -6,9 +6,10 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from pendsweep import TABLE_IV, Status, make_backend
+from pendsweep import FIG9_CO, TABLE_IV, Status, make_backend
 from pendsweep.analytic import linear_amplitude, mechanical_energy
-from pendsweep.kernels import emulated_rhs, wrap_angle
+from pendsweep.kernels import PHYSICS, eq11_params, wrap_angle
+from pendsweep.kernels._layout import RECORD_INDEX as REC
 
 SMOOTH = TABLE_IV.replace(b1=0.0, b3=0.0, alpha=8.0, fe=2.5)
 
@@ -21,11 +22,11 @@ def final_state(params, dt, periods, state0, signum="step"):
 
 def reference(params, periods, state0):
     """DOP853 at tight tolerance, the same right-hand side (smooth damping)."""
-    p = params.kernel_array()
+    q = eq11_params(params.kernel_array(), False, False)
 
     def rhs(t, z):
         force = params.alpha * math.sin(params.omega_e * t)
-        return emulated_rhs(*z, force, *p, 0.0)
+        return PHYSICS.eq11_rhs(tuple(z), (force, 0.0), q)
 
     sol = solve_ivp(rhs, (0, periods / params.fe), state0, method="DOP853", rtol=1e-13, atol=1e-13)
     return sol.y[:, -1]
@@ -58,8 +59,8 @@ def test_pendulum_at_rest_gives_linear_oscillator_amplitude(emulated, fe):
     params = TABLE_IV.replace(alpha=10.0, fe=fe)
     run = emulated.run_point(params, np.zeros(4), 100, 20)
     assert run.status is Status.OK
-    assert np.all(run.records[:, 1] == 0.0)  # theta stays exactly 0
-    amplitude = run.records[:, 6].max()
+    assert np.all(run.records[:, REC["theta_absmax"]] == 0.0)  # theta stays exactly 0
+    amplitude = run.records[:, REC["y_absmax"]].max()
     assert amplitude == pytest.approx(linear_amplitude(params), rel=5e-3)
 
 
@@ -87,9 +88,9 @@ def test_rotations_are_counted_and_peaks_wrapped(emulated):
     trace = emulated.trace(params, state, 3)
     # Net passes over the top equal the unwrapped angle's wrap count.
     expected = math.ceil((trace.theta.iloc[-1] - math.pi) / (2 * math.pi))
-    assert run.records[:, 7].sum() == expected >= 3
-    assert np.all(np.abs(run.records[:, 0]) <= math.pi)
-    assert np.all(np.abs(run.records[:, 4]) <= math.pi)
+    assert run.records[:, REC["rotations"]].sum() == expected >= 3
+    assert np.all(np.abs(run.records[:, REC["theta_peak"]]) <= math.pi)
+    assert np.all(np.abs(run.records[:, REC["theta_sec"]]) <= math.pi)
 
 
 def test_wrap_angle_range():
@@ -97,3 +98,22 @@ def test_wrap_angle_range():
     w = np.array([wrap_angle(v) for v in x])
     assert np.all(w > -math.pi) and np.all(w <= math.pi)
     assert np.allclose(np.cos(w), np.cos(x)) and np.allclose(np.sin(w), np.sin(x))
+
+
+def test_physics_source_compiles_for_another_target():
+    """The right-hand sides are plain functions: compiled for pure Python here (the GPU backend
+    compiles the same source for CUDA), one RK4 step agrees with the numba CPU step bit for bit."""
+    from pendsweep.kernels import compile_physics
+    from pendsweep.kernels._rk4 import make_rk4_step
+    from pendsweep.kernels._steps import eq11_rk4
+
+    def python(fn):
+        return fn
+
+    plain = compile_physics(python)
+    step = make_rk4_step(plain.eq11_rhs, python)
+    q = eq11_params(FIG9_CO.kernel_array(), False, False)
+    x = (0.01, -0.02, 0.7, 1.3)
+    u = (3.0, 1.0), (3.5, 1.0), (4.0, 1.0)
+    assert step(x, *u, 1e-3, q) == eq11_rk4(x, *u, 1e-3, q)
+    assert plain.eq11_rhs(x, u[0], q) != plain.eq11_rhs(x, (3.0, -1.0), q)  # the held sign enters

@@ -18,7 +18,7 @@ import numpy as np
 from .backends import steps_per_period
 from .errors import ConfigError
 from .kernels import N_RECORD_COLUMNS
-from .kernels._batched import batched_periods
+from .kernels._batched import Lanes, batched_periods
 from .params import ModelParams
 
 #: Points integrated in lockstep by one thread (a chunk's working set stays in L1/L2).
@@ -137,13 +137,21 @@ def run_batch(
     st = np.zeros(n, dtype=np.int64)
     dn = np.zeros(n, dtype=np.int64)
     bounds = chunk_bounds(sorted_steps, int(chunk))
+    lanes = Lanes(
+        transient=np.full(n, int(transient_periods), dtype=np.int64),
+        total=np.full(n, int(transient_periods) + int(record_periods), dtype=np.int64),
+        partner=np.full(n, -1, dtype=np.int64),
+        scales=np.ones((4, n)),
+        d0=1.0,
+        rest=0.0,
+    )
     with _LAUNCH:
         previous = nb.get_num_threads()
         # No more threads than chunks: an idle thread only waits at the barrier.
         nb.set_num_threads(max(1, min(int(threads or previous), nb.config.NUMBA_NUM_THREADS, len(bounds) - 1)))
         try:
             batched_periods(
-                soa, p, alpha, fe, sorted_steps, int(transient_periods), signum == "stage", bounds, out, st, dn
+                soa, p, alpha, fe, sorted_steps, lanes, signum == "stage", bounds, out, st, dn, np.empty((n, 0))
             )
         finally:
             nb.set_num_threads(previous)

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Mapping
 
 import numpy as np
@@ -24,7 +24,9 @@ from .errors import ParameterError
 
 __all__ = [
     "ENCODER_RESOLUTION",
+    "KERNEL_FIELDS",
     "ModelParams",
+    "kernel_vector",
     "ParamSpec",
     "PARAM_SPECS",
     "TABLE_IV",
@@ -121,6 +123,10 @@ def check_value(name: str, value: float) -> float:
     return v
 
 
+#: Field metadata marking the physical parameters that form the kernels' parameter vector.
+_KERNEL = {"kernel": True}
+
+
 @dataclass(frozen=True)
 class ModelParams:
     """Physical parameters of the pendulum-oscillator system and its forcing.
@@ -130,16 +136,16 @@ class ModelParams:
     ``alpha = 17 N``, ``fe = 2.5 Hz``.
     """
 
-    m: float = 0.27
-    l: float = 0.1955
-    b1: float = 3.01411e-4
-    b2: float = 4.5067e-5
-    b3: float = 9.17e-7
-    g: float = 9.81
-    M: float = 10.9
-    C: float = 20.0
-    K: float = 1910.0
-    k3: float = 0.0
+    m: float = field(default=0.27, metadata=_KERNEL)
+    l: float = field(default=0.1955, metadata=_KERNEL)
+    b1: float = field(default=3.01411e-4, metadata=_KERNEL)
+    b2: float = field(default=4.5067e-5, metadata=_KERNEL)
+    b3: float = field(default=9.17e-7, metadata=_KERNEL)
+    g: float = field(default=9.81, metadata=_KERNEL)
+    M: float = field(default=10.9, metadata=_KERNEL)
+    C: float = field(default=20.0, metadata=_KERNEL)
+    K: float = field(default=1910.0, metadata=_KERNEL)
+    k3: float = field(default=0.0, metadata=_KERNEL)
     M2: float = 0.9
     C2: float = 10.0
     alpha: float = 17.0
@@ -206,11 +212,18 @@ class ModelParams:
         return dataclasses.asdict(self)
 
     def kernel_array(self) -> np.ndarray:
-        """Contiguous float64 ``[m, l, b1, b2, b3, g, M, C, K, k3]`` for the kernels."""
-        return np.array(
-            [self.m, self.l, self.b1, self.b2, self.b3, self.g, self.M, self.C, self.K, self.k3],
-            dtype=np.float64,
-        )
+        """Contiguous float64 vector of the :data:`KERNEL_FIELDS` for the kernels."""
+        return kernel_vector(self.to_dict())
+
+
+#: The kernels' parameter vector, in order: the fields of :class:`ModelParams`
+#: marked as kernel parameters (``pendsweep.kernels._layout`` indexes it by name).
+KERNEL_FIELDS: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(ModelParams) if f.metadata.get("kernel"))
+
+
+def kernel_vector(values: Mapping[str, float]) -> np.ndarray:
+    """Contiguous float64 kernel parameter vector from a mapping holding every :data:`KERNEL_FIELDS` name."""
+    return np.array([values[name] for name in KERNEL_FIELDS], dtype=np.float64)
 
 
 #: Table IV test-rig parameters with the Figs. 9-11 oscillator.

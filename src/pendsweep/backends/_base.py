@@ -94,7 +94,12 @@ def make_backend(name: str, **options: Any) -> Backend:
     for key, value in options.items():
         default = known[key].default
         try:
-            converted[key] = type(default)(value) if not isinstance(default, bool) else _to_bool(value)
+            if isinstance(default, bool):
+                converted[key] = _to_bool(value)
+            elif default is None:  # an optional number: None (or "none") keeps the documented default meaning
+                converted[key] = None if value is None or str(value).strip().lower() == "none" else float(value)
+            else:
+                converted[key] = type(default)(value)
         except (TypeError, ValueError):
             raise ConfigError(f"backend option {key}={value!r} is not a valid {type(default).__name__}") from None
     return cls(**converted)

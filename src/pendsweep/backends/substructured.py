@@ -45,79 +45,39 @@ from typing import Any, ClassVar
 
 import numpy as np
 import pandas as pd
-from scipy import signal
-
 from ..errors import ConfigError
 from ..kernels import N_RECORD_COLUMNS
+from ..kernels._actuator import ACT_HERMITE, ACT_SERVO
 from ..kernels._substructured import (
-    ACT_HERMITE,
-    ACT_SERVO,
     N_TRACE_COLUMNS,
+    S_P_TH,
+    S_P_X,
+    S_P_XD,
+    S_TICKS,
+    S_XPREV1,
+    S_XPREV2,
     TRACE_COLUMNS,
+    LoopSettings,
     state_offsets,
     substructured_loop,
+)
+from ..loop import (
+    ACTUATORS,
+    MAX_PREDICTOR_ORDER,
+    design_force_filter,
+    effective_delay,
+    filter_delay,
+    prediction_horizon,
+    predictor_weights,
 )
 from ..params import ENCODER_RESOLUTION, ModelParams
 from ..status import Status
 from ._base import PointRun, register, steps_per_period
 
-ACTUATORS = ("servo", "delay", "ideal")
-MAX_PREDICTOR_ORDER = 4
 #: Instability test: rms of x'' at the controller rate above this [m/s^2] ...
 HF_ACCEL_FLOOR = 2.0
 #: ... and above this multiple of a pure forcing-frequency motion's, for 2 periods in a row.
 HF_RATIO = 10.0
-
-
-def effective_delay(
-    actuator: str, transport_delay: float, servo_bandwidth: float, servo_damping: float, dt: float, frequency: float
-) -> float:
-    """Total effective delay [s] of ``x`` behind ``y*`` at ``frequency`` [Hz].
-
-    Servo: transport delay + ``dt/2`` (zero-order hold of the command) + the
-    servo's phase lag divided by the angular frequency. Delay actuator: the
-    transport delay. Ideal: 0.
-    """
-    if actuator == "ideal":
-        return 0.0
-    if actuator == "delay":
-        return transport_delay
-    w = 2.0 * math.pi * frequency
-    ws = 2.0 * math.pi * servo_bandwidth
-    lag = math.atan2(2.0 * servo_damping * ws * w, ws * ws - w * w)
-    return transport_delay + 0.5 * dt + lag / w
-
-
-def predictor_weights(order: int, points: int, horizon: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """Least-squares polynomial extrapolation as two weight vectors.
-
-    The polynomial of ``order`` fitted to ``points`` samples at times
-    ``0, -dt, ..., -(points-1) dt`` (most recent first) is evaluated at
-    ``horizon`` [s]: value ``= w @ samples`` and slope ``= wd @ samples`` [1/s].
-    """
-    s = -np.arange(points, dtype=np.float64)  # sample times in units of dt
-    V = np.vander(s, order + 1, increasing=True)
-    P = np.linalg.pinv(V)  # (order+1, points): coefficients from samples
-    hs = horizon / dt
-    powers = np.array([hs**j for j in range(order + 1)])
-    dpowers = np.array([j * hs ** (j - 1) if j > 0 else 0.0 for j in range(order + 1)])
-    return np.ascontiguousarray(powers @ P), np.ascontiguousarray(dpowers @ P / dt)
-
-
-def design_force_filter(low: float, high: float, order: int, dt: float) -> np.ndarray:
-    """Butterworth band-pass ``[low, high]`` Hz at sample step ``dt`` as SOS ``(order, 6)``."""
-    return np.ascontiguousarray(signal.butter(order, [low, high], btype="bandpass", fs=1.0 / dt, output="sos"))
-
-
-def filter_phase(sos: np.ndarray, frequency: float, dt: float) -> float:
-    """Phase [rad] of the filter at ``frequency`` [Hz] (negative: lag)."""
-    _, hresp = signal.sosfreqz(sos, worN=[frequency], fs=1.0 / dt)
-    return float(np.angle(hresp[0]))
-
-
-def phase_to_delay(phase: float, frequency: float) -> float:
-    """Equivalent delay [s] of a phase shift [rad] at ``frequency`` [Hz]: ``-phase / (2 pi f)``."""
-    return -phase / (2.0 * math.pi * frequency)
 
 
 @register
@@ -153,8 +113,8 @@ class SubstructuredBackend:
         Polynomial order 0-4 of the forward prediction of ``y*``; -1: none (default 1).
     predictor_points : int
         Samples ``N >= order + 1`` in the least-squares fit (default 5).
-    tau_hat : float
-        Prediction horizon [s]; negative (default -1): the total effective
+    tau_hat : float or None
+        Prediction horizon [s]; None (default): matched, the total effective
         delay at the forcing frequency, :meth:`effective_delay`.
     force_filter : bool
         Band-pass the measured force (default off).
@@ -192,7 +152,7 @@ class SubstructuredBackend:
     servo_damping: float = 0.7
     predictor_order: int = 1
     predictor_points: int = 5
-    tau_hat: float = -1.0
+    tau_hat: float | None = None
     force_filter: bool = False
     filter_low: float = 1.0
     filter_high: float = 3.6
@@ -213,12 +173,16 @@ class SubstructuredBackend:
                 raise ConfigError(text)
 
         for name in (
-            "dt", "transport_delay", "servo_bandwidth", "servo_damping", "tau_hat", "filter_low",
+            "dt", "transport_delay", "servo_bandwidth", "servo_damping", "filter_low",
             "filter_high", "force_noise", "harmonic3", "harmonic5", "harmonic7",
             "encoder_resolution", "lvdt_resolution", "lvdt_noise", "stroke",
         ):  # fmt: skip
             need(math.isfinite(getattr(self, name)), f"{name} = {getattr(self, name)!r} must be finite")
         need(self.dt > 0, f"dt = {self.dt!r} s must be > 0")
+        need(
+            self.tau_hat is None or (math.isfinite(self.tau_hat) and self.tau_hat >= 0),
+            f"tau_hat = {self.tau_hat!r} s must be a finite delay >= 0 (or None: matched to the effective delay)",
+        )
         need(self.physics_substeps >= 1, f"physics_substeps = {self.physics_substeps!r} must be an integer >= 1")
         need(self.actuator in ACTUATORS, f"actuator = {self.actuator!r}; choose one of {', '.join(ACTUATORS)}")
         need(self.transport_delay >= 0, f"transport_delay = {self.transport_delay!r} s must be >= 0")
@@ -281,9 +245,9 @@ class SubstructuredBackend:
         """Rest of the loop consistent with ``y* = x = y`` (histories constant, filter empty)."""
         o_cmd, o_cmdd, o_yh, o_fh, o_z, length = state_offsets(self.n_cmd, self.predictor_points, self.filter_order)
         s = np.zeros(length)
-        s[:6] = (y, ydot, theta, thetadot, y, ydot)
-        s[7] = s[8] = y
-        s[9:12] = (ydot, y, thetadot * math.sin(theta))
+        s[:6] = (y, ydot, theta, thetadot, y, ydot)  # y*, y*', theta, theta', x, x'
+        s[S_XPREV1] = s[S_XPREV2] = y
+        s[S_P_XD], s[S_P_X], s[S_P_TH] = ydot, y, thetadot * math.sin(theta)
         s[o_cmd:o_cmdd] = y
         s[o_cmdd:o_yh] = ydot
         s[o_yh:o_fh] = y
@@ -298,7 +262,7 @@ class SubstructuredBackend:
 
     def horizon(self, params: ModelParams) -> float:
         """Prediction horizon ``tau_hat`` [s] used at these parameters."""
-        return self.tau_hat if self.tau_hat >= 0 else self.effective_delay(params.fe)
+        return prediction_horizon(self.tau_hat, self.effective_delay(params.fe))
 
     def filter_sos(self, params: ModelParams) -> np.ndarray:
         return design_force_filter(self.filter_low, self.filter_high, self.filter_order, self.step(params))
@@ -307,7 +271,7 @@ class SubstructuredBackend:
         """Equivalent delay [s] of the force filter at the forcing frequency (0 when off)."""
         if not self.force_filter:
             return 0.0
-        return phase_to_delay(filter_phase(self.filter_sos(params), params.fe, self.step(params)), params.fe)
+        return filter_delay(self.filter_sos(params), params.fe, self.step(params))
 
     # -- running ------------------------------------------------------------------
     def _run(self, params, state, transient, n_rec, trace_rows, stride):
@@ -321,7 +285,7 @@ class SubstructuredBackend:
         n = self.steps_per_period(params)
         dt = self.step(params)
         ticks = (transient + n_rec) * n
-        rng = np.random.default_rng([self.seed, int(state[6])])
+        rng = np.random.default_rng([self.seed, int(state[S_TICKS])])
         noise_f = rng.standard_normal(ticks) * self.force_noise
         noise_x = rng.standard_normal(ticks) * self.lvdt_noise
         use_pred = self.predictor_order >= 0
@@ -331,39 +295,34 @@ class SubstructuredBackend:
         wf, _ = predictor_weights(order, self.predictor_points, self.filter_delay(params), dt)
         records = np.full((n_rec, N_RECORD_COLUMNS), np.nan)
         trace = np.full((trace_rows, N_TRACE_COLUMNS), np.nan)
+        settings = LoopSettings(
+            M2=float(params.M2),
+            C2=float(params.C2),
+            alpha=float(params.alpha),
+            fe=float(params.fe),
+            steps_per_period=int(n),
+            substeps=int(self.physics_substeps),
+            actuator=ACT_SERVO if self.actuator == "servo" else ACT_HERMITE,
+            tau=float(self.transport_delay if self.actuator != "ideal" else 0.0),
+            ws=2.0 * math.pi * self.servo_bandwidth,
+            zeta=float(self.servo_damping),
+            n_cmd=int(self.n_cmd),
+            use_pred=bool(use_pred),
+            w_pred=w,
+            wd_pred=wd,
+            use_filter=bool(self.force_filter),
+            sos=sos,
+            use_force_pred=bool(self.force_filter and use_pred),
+            w_force=wf,
+            enc_res=float(self.encoder_resolution),
+            lvdt_res=float(self.lvdt_resolution),
+            harmonics=np.array([self.harmonic3, self.harmonic5, self.harmonic7]),
+            stroke=float(self.stroke),
+            hf_ratio=HF_RATIO,
+            hf_accel=HF_ACCEL_FLOOR,
+        )
         code, done = substructured_loop(
-            state,
-            params.kernel_array(),
-            params.M2,
-            params.C2,
-            params.alpha,
-            params.fe,
-            n,
-            self.physics_substeps,
-            ACT_SERVO if self.actuator == "servo" else ACT_HERMITE,
-            self.transport_delay if self.actuator != "ideal" else 0.0,
-            2.0 * math.pi * self.servo_bandwidth,
-            self.servo_damping,
-            self.n_cmd,
-            w,
-            wd,
-            use_pred,
-            sos,
-            self.force_filter,
-            wf,
-            self.force_filter and use_pred,
-            self.encoder_resolution,
-            self.lvdt_resolution,
-            noise_f,
-            noise_x,
-            np.array([self.harmonic3, self.harmonic5, self.harmonic7]),
-            self.stroke,
-            HF_RATIO,
-            HF_ACCEL_FLOOR,
-            transient,
-            records,
-            trace,
-            stride,
+            state, params.kernel_array(), settings, noise_f, noise_x, transient, records, trace, stride
         )
         return code, int(done), state, records, trace
 

@@ -10,6 +10,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from ..backends import make_backend
+from ..kernels import PHYSICS, eq11_params
 from ..params import FIG9_PO, ModelParams
 from ..sweep import run_sweep
 from ..sweepfile import SWEEPS_DIR, load_sweep
@@ -28,20 +29,14 @@ def solve_ivp_point(p: ModelParams, state0, periods: int, budget_s: float = math
     makes the pendulum stick, the adaptive step collapses on the sgn
     discontinuity and the integration effectively stops advancing.
     """
-    m, l, b1, b2, b3, g, M, C, K, k3 = p.kernel_array()
+    q = eq11_params(p.kernel_array(), True, False)  # signum at every evaluation
     w = p.omega_e
     deadline = time.perf_counter() + budget_s
 
     def rhs(t, z):
         if time.perf_counter() > deadline:
             raise _Stalled
-        y, yd, th, thd = z
-        s, c = math.sin(th), math.cos(th)
-        sg = math.copysign(1.0, thd) if thd != 0 else 0.0
-        fd = b1 * sg + b2 * thd + b3 * thd * thd * sg
-        den = M + m * c * c
-        common = p.alpha * math.sin(w * t) - C * yd - K * y - k3 * y**3 - m * l * thd * thd * c + s * fd / l
-        return [yd, (common + m * g * s * s) / den, thd, -(s / l) * (common + (M + m) * g) / den - fd / (m * l * l)]
+        return PHYSICS.eq11_rhs(tuple(z), (p.alpha * math.sin(w * t), 0.0), q)
 
     sol = solve_ivp(rhs, (0.0, periods / p.fe), state0, method="RK45", rtol=1e-8, atol=1e-10)
     return sol.y[:, -1]

@@ -69,6 +69,10 @@ def _columns(params: list[ModelParams]) -> tuple[np.ndarray, ...]:
 def rk4_step_for(xp):
     """One RK4 step of Eq. (11) written against an array module (numpy or jax.numpy).
 
+    This is a peer, the script a user would write without pendsweep, so it is
+    deliberately an independent implementation: it shares no code with the
+    kernels (numpy and JAX cannot call numba functions anyway).
+
     ``step(cols, z, t, dt)``: ``cols`` are the per-point columns of
     :func:`_columns`, ``z`` the stacked state ``(4, ...)``; the signum of
     thetadot is held over the step, the forcing is ``alpha sin(omega_e t)``.
@@ -131,7 +135,7 @@ def vector_instructions() -> dict[str, int]:
     from ..kernels._batched import _N_CONST, _step_chunk
 
     fn = nb.njit(error_model="numpy", fastmath={"contract"})(_step_chunk.py_func)  # uncached, to inspect
-    fn(*[np.zeros(8) for _ in range(7)], np.ones((_N_CONST, 8)), 0.0, False, True, 0.0, 0.0, 0.0)
+    fn(*[np.zeros(8) for _ in range(7)], np.ones((_N_CONST, 8)), np.zeros((3, 8)), True, 0.0, 0.0, 0.0, False)
     asm = next(iter(fn.inspect_asm().values()))
     ops = r"\bv(?:fn?m(?:add|sub)\d+|mul|add|sub|div|sqrt)pd\s+%?"
     return {

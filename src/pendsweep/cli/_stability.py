@@ -49,7 +49,7 @@ def _pair(text: str | None, name: str, cast) -> tuple | None:
 @click.option("--predictor", default=None, metavar="n,N",
               help="Polynomial forward prediction: order n (0-4) fitted to N points (e.g. 1,5, the paper's).")
 @click.option("--tau-hat", default=None, metavar="SECONDS|matched",
-              help="Prediction horizon [s]; 'matched' sets it equal to the transport delay (default 0.018, the paper's).")
+              help="Prediction horizon [s]; 'matched' sets it to the total effective delay of the actuator at --filter-frequency (the transport delay for --actuator delay) (default 0.018 s, the paper's).")
 @click.option("--filter-band", default=None, metavar="LOW,HIGH",
               help="Butterworth band-pass on the measured force, edges [Hz] (default: no filter).")
 @click.option("--filter-order", type=click.IntRange(1, 8), default=1, show_default=True, help="Butterworth order of the force filter.")
@@ -136,7 +136,7 @@ def margin(M1, C1, K, ms, C2, actuator, dt, servo_bandwidth, servo_damping, pred
 
 
 def _describe(cfg: SampledLoop) -> str:
-    horizon = "tau_hat = tau" if cfg.tau_hat is None else f"tau_hat = {cfg.tau_hat:g} s"
+    horizon = "tau_hat matched to the effective delay" if cfg.tau_hat is None else f"tau_hat = {cfg.tau_hat:g} s"
     return f"predictor n = {cfg.predictor_order}, N = {cfg.predictor_points}, {horizon}"
 
 

@@ -43,6 +43,7 @@ from scipy.optimize import least_squares
 from ..data import Record
 from ..errors import ConfigError
 from ..kernels import pendulum_trace
+from ..params import kernel_vector
 from .replay import MAX_STEP, noise_std, smoothed
 from .signatures import extrema
 
@@ -124,7 +125,9 @@ class _Swing:
     def simulate(self, q: dict[str, float], n: int | None = None) -> np.ndarray:
         """Simulated angle (offset included) at the record's samples."""
         L = q["L"]
-        p = np.array([1.0, L, q["beta1"] * L * L, q["beta2"] * L * L, q["beta3"] * L * L, self.g, 1.0, 0.0, 1.0, 0.0])
+        # Unit mass: the decay depends on the damping only through beta_i = b_i / (m l^2).
+        p = kernel_vector(dict(m=1.0, l=L, b1=q["beta1"] * L * L, b2=q["beta2"] * L * L, b3=q["beta3"] * L * L,
+                               g=self.g, M=1.0, C=0.0, K=1.0, k3=0.0))  # fmt: skip
         out = np.empty((n or self.n, 2))
         pendulum_trace(np.array([q["theta_init"] - q["theta0"], q["thetadot_init"]]), p, self.dt, self.substeps, out)
         return out[:, 0] + q["theta0"]

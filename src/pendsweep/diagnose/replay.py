@@ -34,6 +34,7 @@ from scipy.signal import savgol_filter
 
 from ..errors import ConfigError
 from ..kernels import driven_trace, pendulum_trace, substructured_replay
+from ..params import kernel_vector
 from ..data import Record
 from .effects import nominal_values
 
@@ -46,7 +47,6 @@ TRAIN_FRACTION = 0.6
 MAX_STEP = 1e-3
 #: Savitzky-Golay window for state estimates [s] (cubic).
 SMOOTH_WINDOW = 0.05
-_KERNEL_ORDER = ("m", "l", "b1", "b2", "b3", "g", "M", "C", "K", "k3")
 NUISANCE = ("theta_init", "thetadot_init")
 
 
@@ -149,7 +149,7 @@ class Replay:
         stop = self.n if stop is None else stop
         v = dict(self.nominal, **self.initial_guess)
         v.update(values)
-        p = np.array([v[k] for k in _KERNEL_ORDER], dtype=np.float64)
+        p = kernel_vector(v)
         theta0 = v["theta0"]
         if self.kind == "free_decay":
             out = np.empty((stop, 2))

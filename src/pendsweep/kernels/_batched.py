@@ -2,29 +2,33 @@
 
 The scalar kernel (:func:`pendsweep.kernels.emulated_periods`) spends its
 time in libm ``sin``/``cos``, which LLVM cannot vectorise. Here the state of
-a chunk of points lives in structure-of-arrays form and the innermost loop
-runs over points, so that LLVM turns one RK4 step of the whole chunk into
-AVX-512 code; ``sin``/``cos`` come from the branch-free
+a chunk of points (lanes) lives in structure-of-arrays form and the
+innermost loop runs over lanes, so that LLVM turns one RK4 step of the whole
+chunk into AVX-512 code; ``sin``/``cos`` come from the branch-free
 :func:`~pendsweep.kernels._sincos.sincos_poly`. The forcing at the stage
-times is the scalar kernel's half-step table when all points of a chunk
-share their steps per period, and otherwise the exact phase of each step's
-start (``sincos_poly``) followed by two half-step rotations. Each point
-keeps its own step, so points with different ``fe`` (and so different steps
-per period) share a chunk; a point that has finished or diverged is frozen
-by a select. Period ends are rare events handled by a scalar pass that fills
-the same records as the scalar kernel.
+times is read from the scalar kernel's half-step table of the lane's own
+steps per period, so lanes with different ``fe`` share a chunk and **a
+lane's result never depends on the other lanes of its chunk** (which makes
+a resumed sweep bit-identical whatever was done before). A lane that has
+finished or diverged is frozen by a select. Period ends are rare events
+handled by a scalar pass that fills the same records as the scalar kernel.
 
-Chunks run in parallel (``prange``). A point's result depends on the other
-points of its chunk only through whether they all share its steps per period
-(then the forcing comes from the scalar kernel's exact table).
+Twin lanes: a lane with a ``partner`` follows it at a small distance for the
+two-trajectory Lyapunov estimate of :mod:`pendsweep.classify`. At every
+period end the twin's separation from its partner (normalised section
+coordinates) gives one log-stretch sample, and the twin is pulled back to
+distance ``d0`` along the separation (Benettin), all inside the kernel.
+
+Chunks run in parallel (``prange``).
 """
 
 import math
+from typing import NamedTuple
 
 import numba as nb
 import numpy as np
 
-from ._emulated import forcing_table, rk4_step
+from ._emulated import eq11_step, forcing_table
 from ._layout import (
     N_PARAMS,
     P_B1,
@@ -43,49 +47,87 @@ from ._layout import (
     STATUS_DIVERGED,
     STATUS_OK,
 )
-from ._records import TWO_PI, fold_extremes, record_close, wrap_index
-from ._sincos import sincos_poly
+from ._records import TWO_PI, fold_extremes, record_close, wrap_angle, wrap_index
 
-# Rows of a chunk's per-point constant table: the parameter vector, then these.
-_ALPHA, _ROT_S, _ROT_C, _STEPS, _DT, _INV_L, _INV_M = range(N_PARAMS, N_PARAMS + 7)
-_N_CONST = N_PARAMS + 7
+# Rows of a chunk's per-lane constant table: the parameter vector, then these.
+_ALPHA, _TABLE, _STEPS, _DT, _INV_L, _INV_M = range(N_PARAMS, N_PARAMS + 6)
+_N_CONST = N_PARAMS + 6
+
+
+class Lanes(NamedTuple):
+    """Per-lane schedule of :func:`batched_periods` (arrays of length n).
+
+    Attributes
+    ----------
+    transient : int64[n]
+        Periods integrated before the lane's first record row.
+    total : int64[n]
+        Periods integrated in all (transient included; at most
+        ``transient + out.shape[1]``).
+    partner : int64[n]
+        -1, or the index of the lane this one is a twin of; the partner must
+        lie in the same chunk at a smaller index and share ``steps``.
+    scales : float64[4, n]
+        Divisors making a twin's section separation dimensionless
+        (``pendsweep.classify.section_scales``).
+    d0 : float
+        Twin separation after each renormalisation [normalised].
+    rest : float
+        A twin stops (its samples end) once its partner's period swing,
+        max |theta|, falls below this [rad]: at rest the separation means nothing.
+    """
+
+    transient: np.ndarray
+    total: np.ndarray
+    partner: np.ndarray
+    scales: np.ndarray
+    d0: float
+    rest: float
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def twin_separation(ref, twin, scales):
+    """Section separation of ``twin`` from ``ref`` (4-tuples): ``(full, distance)``.
+
+    ``full`` is the separation in state units with the angle difference
+    wrapped to (-pi, pi]; ``distance`` its norm in normalised units.
+    """
+    f0 = (twin[0] - ref[0]) / scales[0] * scales[0]
+    f1 = (twin[1] - ref[1]) / scales[1] * scales[1]
+    f2 = wrap_angle((twin[2] - ref[2]) / scales[2]) * scales[2]
+    f3 = (twin[3] - ref[3]) / scales[3] * scales[3]
+    u0, u1, u2, u3 = f0 / scales[0], f1 / scales[1], f2 / scales[2], f3 / scales[3]
+    return (f0, f1, f2, f3), math.sqrt(u0 * u0 + u1 * u1 + u2 * u2 + u3 * u3)
 
 
 # error_model="numpy": no ZeroDivisionError branch (every denominator is > 0),
 # which would keep LLVM from vectorising the loop. The loop writes only six
 # arrays: more would exceed LLVM's budget of runtime alias checks.
 @nb.njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
-def _step_chunk(y, yd, th, thd, peak, yabs, live, const, k, sgn_per_stage, uniform, u0, u1, u2):
-    """Advance every live point of a chunk by RK4 step ``k`` (0-based, float).
+def _step_chunk(y, yd, th, thd, peak, yabs, live, const, forcing, uniform, u0, u1, u2, sgn_per_stage):
+    """Advance every live lane of a chunk by one RK4 step.
 
     ``y, yd, th, thd`` are the state, ``peak`` the signed wrapped theta of
     largest modulus and ``yabs`` the max |y| of the current period (all
-    float64[n], updated in place); ``live`` is 1.0 for points still being
-    integrated; ``const`` is float64[_N_CONST, n]. When every point has the
-    same steps per period (``uniform``), ``u0, u1, u2`` are the unit forcing
-    sines at the step's stage times, shared by all points.
+    float64[n], updated in place); ``live`` is 1.0 for lanes still being
+    integrated; ``const`` is float64[_N_CONST, n]. The unit forcing sines at
+    the stage times are ``u0, u1, u2`` for every lane when the chunk is
+    ``uniform`` in steps per period, else ``forcing[:, i]`` (float64[3, n]):
+    the same table values either way.
     """
     for i in range(y.shape[0]):
-        a = const[_ALPHA, i]
         if uniform:
             s0, s1, s2 = u0, u1, u2
         else:
-            # Forcing at the stage times t, t + dt/2, t + dt: the exact phase of the
-            # step's start (the scalar kernel's table argument), then two half-step rotations.
-            n = const[_STEPS, i]
-            rs = const[_ROT_S, i]
-            rc = const[_ROT_C, i]
-            s0, c0 = sincos_poly(math.pi * (2.0 * (k - n * np.floor(k / n))) / n)
-            s1 = s0 * rc + c0 * rs
-            c1 = c0 * rc - s0 * rs
-            s2 = s1 * rc + c1 * rs
+            s0, s1, s2 = forcing[0, i], forcing[1, i], forcing[2, i]
+        a = const[_ALPHA, i]
         y0, yd0, th0, thd0, pk0, ya0 = y[i], yd[i], th[i], thd[i], peak[i], yabs[i]
-        y1, yd1, th1, thd1 = rk4_step(
-            y0, yd0, th0, thd0, a * s0, a * s1, a * s2, const[_DT, i],
+        q = (
             const[P_M_PEND, i], const[P_L, i], const[P_B1, i], const[P_B2, i], const[P_B3, i],
             const[P_G, i], const[P_M, i], const[P_C, i], const[P_K, i], const[P_K3, i],
             sgn_per_stage, True, const[_INV_L, i], const[_INV_M, i],
-        )
+        )  # fmt: skip
+        y1, yd1, th1, thd1 = eq11_step((y0, yd0, th0, thd0), a * s0, a * s1, a * s2, const[_DT, i], q)
         _, pk1, ya1 = fold_extremes(abs(pk0), pk0, ya0, y1, th1)
         on = live[i] != 0.0
         y[i] = y1 if on else y0
@@ -97,79 +139,117 @@ def _step_chunk(y, yd, th, thd, peak, yabs, live, const, k, sgn_per_stage, unifo
 
 
 @nb.njit(cache=True, nogil=True)
-def _integrate_chunk(state, p, alpha, fe, steps, transient_periods, sgn_per_stage, out, status, done):
-    """Integrate one chunk of points (all arrays are the chunk's slices); see :func:`batched_periods`."""
-    n = state.shape[1]
-    total = transient_periods + out.shape[1]
-    y = state[0].copy()
-    yd = state[1].copy()
-    th = state[2].copy()
-    thd = state[3].copy()
-    peak = np.zeros(n)
-    yabs = np.zeros(n)
-    live = np.ones(n)
-    period = np.zeros(n, dtype=np.int64)
-    period_end = np.empty(n, dtype=np.int64)  # step count at the end of each point's current period
+def _gather_forcing(forcing, const, tables, k):
+    """Each lane's unit forcing sines at the stage times of step ``k``, from its own table."""
+    for i in range(forcing.shape[1]):
+        n = int(const[_STEPS, i])
+        j = int(const[_TABLE, i]) + 2 * (k % n)
+        forcing[0, i] = tables[j]
+        forcing[1, i] = tables[j + 1]
+        forcing[2, i] = tables[j + 2]
+
+
+@nb.njit(cache=True, nogil=True)
+def _chunk_constants(p, alpha, fe, steps):
+    """Per-lane constants (float64[_N_CONST, n]) and the concatenated unit forcing tables."""
+    n = steps.shape[0]
     const = np.empty((_N_CONST, n))
-    max_steps = 0
-    uniform = True
+    size = 0
     for i in range(n):
-        uniform = uniform and steps[i] == steps[0]
+        if i == 0 or steps[i] != steps[i - 1]:
+            size += 2 * steps[i] + 1
+    tables = np.empty(size)
+    offset = -1
+    for i in range(n):
+        if i == 0 or steps[i] != steps[i - 1]:  # lanes sorted by steps share one table
+            offset = offset + 2 * steps[i - 1] + 1 if i > 0 else 0
+            tables[offset : offset + 2 * steps[i] + 1] = forcing_table(1.0, steps[i])
         const[:N_PARAMS, i] = p[:, i]
         const[_ALPHA, i] = alpha[i]
-        const[_ROT_S, i] = math.sin(math.pi / steps[i])
-        const[_ROT_C, i] = math.cos(math.pi / steps[i])
+        const[_TABLE, i] = offset
         const[_STEPS, i] = steps[i]
         const[_DT, i] = 1.0 / (fe[i] * steps[i])
         const[_INV_L, i] = 1.0 / p[P_L, i]
         const[_INV_M, i] = 1.0 / p[P_M_PEND, i]
-        period_end[i] = steps[i]
+    return const, tables
+
+
+@nb.njit(cache=True, nogil=True)
+def _close_period(i, y, yd, th, thd, peak, yabs, live, swing, period, lanes, lo, out, status, done, stretch):
+    """Period end of lane ``i`` (chunk-local; ``lo`` is the chunk's first global index)."""
+    kp = period[i]
+    r = kp - lanes.transient[lo + i]
+    if not (math.isfinite(y[i]) and math.isfinite(yd[i]) and math.isfinite(th[i]) and math.isfinite(thd[i])):
+        if r >= 0:
+            out[i, r, :] = np.nan
+        status[i] = STATUS_DIVERGED
+        done[i] = kp
+        live[i] = 0.0
+        return
+    # Net passes over the top in this period; rewrapping keeps theta bounded.
+    turns = wrap_index(th[i])
+    th[i] -= TWO_PI * turns
+    swing[i] = abs(peak[i])
+    if r >= 0:
+        row = out[i, r]
+        row[REC_THETA_PEAK] = peak[i]
+        row[REC_THETA_ABSMAX] = swing[i]
+        row[REC_Y_ABSMAX] = yabs[i]
+        record_close(row, y[i], yd[i], th[i], thd[i], turns)
+    period[i] = kp + 1
+    if kp + 1 == lanes.total[lo + i]:
+        live[i] = 0.0
+    _, peak[i], yabs[i] = fold_extremes(0.0, 0.0, 0.0, y[i], th[i])
+    if lanes.partner[lo + i] >= 0:  # a twin: one Lyapunov sample, then back to distance d0
+        ref = lanes.partner[lo + i] - lo
+        s = lanes.scales[:, lo + i]
+        full, distance = twin_separation((y[ref], yd[ref], th[ref], thd[ref]), (y[i], yd[i], th[i], thd[i]), s)
+        if swing[ref] < lanes.rest or not (math.isfinite(distance) and distance > 0):
+            live[i] = 0.0
+            return
+        stretch[i, kp] = math.log(distance / lanes.d0)
+        g = lanes.d0 / distance
+        y[i], yd[i] = y[ref] + full[0] * g, yd[ref] + full[1] * g
+        th[i], thd[i] = th[ref] + full[2] * g, thd[ref] + full[3] * g
+
+
+@nb.njit(cache=True, nogil=True)
+def _integrate_chunk(state, p, alpha, fe, steps, lanes, lo, sgn_per_stage, out, status, done, stretch):
+    """Integrate one chunk (arrays are the chunk's slices, ``lanes`` global); see :func:`batched_periods`."""
+    n = state.shape[1]
+    y, yd, th, thd = state[0].copy(), state[1].copy(), state[2].copy(), state[3].copy()
+    peak, yabs, swing = np.zeros(n), np.zeros(n), np.zeros(n)
+    live = np.ones(n)
+    period = np.zeros(n, dtype=np.int64)
+    period_end = steps.copy()  # step count at the end of each lane's current period
+    const, tables = _chunk_constants(p, alpha, fe, steps)
+    max_steps = 0
+    for i in range(n):
         _, peak[i], yabs[i] = fold_extremes(0.0, 0.0, 0.0, y[i], th[i])  # the opening sample
         status[i] = STATUS_OK
-        done[i] = total
-        max_steps = max(max_steps, total * steps[i])
-    # Unit forcing sines at the half-step times (as in the scalar kernel), for a uniform chunk.
-    table = forcing_table(1.0, steps[0])
-    next_end = period_end.min()
+        done[i] = lanes.total[lo + i]
+        max_steps = max(max_steps, lanes.total[lo + i] * steps[i])
+        live[i] = 1.0 if lanes.total[lo + i] > 0 else 0.0
+    uniform = n > 0 and steps.min() == steps.max()
+    forcing = np.empty((3, 0 if uniform else n))
+    next_end = period_end.min() if n > 0 else 0
     for k in range(max_steps):
-        j = k % steps[0]
+        j = 2 * (k % steps[0]) if uniform else 0
+        if not uniform:
+            _gather_forcing(forcing, const, tables, k)
         _step_chunk(
-            y, yd, th, thd, peak, yabs, live, const, float(k), sgn_per_stage,
-            uniform, table[2 * j], table[2 * j + 1], table[2 * j + 2],
-        )
+            y, yd, th, thd, peak, yabs, live, const, forcing, uniform, tables[j], tables[j + 1], tables[j + 2],
+            sgn_per_stage,
+        )  # fmt: skip
         if k + 1 < next_end:
             continue
         next_end = max_steps + 1
         for i in range(n):
-            if period_end[i] != k + 1:
-                next_end = min(next_end, period_end[i])
-                continue
-            period_end[i] += steps[i]
+            if period_end[i] == k + 1:
+                period_end[i] += steps[i]
+                if live[i] != 0.0:
+                    _close_period(i, y, yd, th, thd, peak, yabs, live, swing, period, lanes, lo, out, status, done, stretch)
             next_end = min(next_end, period_end[i])
-            if live[i] == 0.0:
-                continue
-            kp = period[i]
-            r = kp - transient_periods
-            if not (math.isfinite(y[i]) and math.isfinite(yd[i]) and math.isfinite(th[i]) and math.isfinite(thd[i])):
-                if r >= 0:
-                    out[i, r, :] = np.nan
-                status[i] = STATUS_DIVERGED
-                done[i] = kp
-                live[i] = 0.0
-                continue
-            # Net passes over the top in this period; rewrapping keeps theta bounded.
-            turns = wrap_index(th[i])
-            th[i] -= TWO_PI * turns
-            if r >= 0:
-                row = out[i, r]
-                row[REC_THETA_PEAK] = peak[i]
-                row[REC_THETA_ABSMAX] = abs(peak[i])
-                row[REC_Y_ABSMAX] = yabs[i]
-                record_close(row, y[i], yd[i], th[i], thd[i], turns)
-            period[i] = kp + 1
-            if kp + 1 == total:
-                live[i] = 0.0
-            _, peak[i], yabs[i] = fold_extremes(0.0, 0.0, 0.0, y[i], th[i])
         if live.max() == 0.0:
             break
     state[0, :] = y
@@ -179,49 +259,51 @@ def _integrate_chunk(state, p, alpha, fe, steps, transient_periods, sgn_per_stag
 
 
 @nb.njit(cache=True, nogil=True, parallel=True)
-def batched_periods(state, p, alpha, fe, steps, transient_periods, sgn_per_stage, bounds, out, status, done):
-    """Integrate whole forcing periods of many points and fill per-period records.
+def batched_periods(state, p, alpha, fe, steps, lanes, sgn_per_stage, bounds, out, status, done, stretch):
+    """Integrate whole forcing periods of many lanes and fill per-period records.
 
-    Point ``i`` is integrated as ``emulated_periods`` would with
-    ``state[:, i]``, ``p[:, i]``, ``alpha[i]``, ``fe[i]``, ``steps[i]``, except
-    that sin/cos come from :func:`sincos_poly` (<= 1 ulp), divisions become
-    reciprocals and, in a chunk whose points differ in ``steps``, the forcing
-    sine at the half steps comes from a rotation (a few ulp of ``alpha``).
+    Lane ``i`` is integrated as ``emulated_periods`` would with
+    ``state[:, i]``, ``p[:, i]``, ``alpha[i]``, ``fe[i]``, ``steps[i]`` and
+    ``lanes.transient[i]``, except that sin/cos come from
+    :func:`sincos_poly` (<= 1.5 ulp) and divisions become reciprocals.
 
     Parameters
     ----------
     state : float64[4, n]
-        ``(y [m], ydot [m/s], theta [rad], thetadot [rad/s])`` per point at
+        ``(y [m], ydot [m/s], theta [rad], thetadot [rad/s])`` per lane at
         forcing phase 0 (structure of arrays); overwritten with the final
-        states (theta wrapped; a diverged point keeps its non-finite state).
+        states (theta wrapped; a diverged lane keeps its non-finite state).
     p : float64[N_PARAMS, n]
         Parameter vectors (``ModelParams.kernel_array``) as columns.
     alpha, fe : float64[n]
-        Forcing amplitude [N] and frequency [Hz] per point.
+        Forcing amplitude [N] and frequency [Hz] per lane.
     steps : int64[n]
-        RK4 steps per forcing period per point; ``dt = 1 / (fe * steps)``.
-        A chunk whose points share ``steps`` shares the forcing values.
-    transient_periods : int
-        Periods integrated before recording starts.
+        RK4 steps per forcing period per lane; ``dt = 1 / (fe * steps)``.
+        Within a chunk, lanes sorted by ``steps`` share one forcing table.
+    lanes : Lanes
+        Per-lane schedule and twins.
     sgn_per_stage : bool
         Evaluate sgn(thetadot) at every RK4 stage instead of once per step.
     bounds : int64[n_chunks + 1]
-        Chunk ``c`` holds points ``bounds[c]:bounds[c + 1]``, integrated in
+        Chunk ``c`` holds lanes ``bounds[c]:bounds[c + 1]``, integrated in
         lockstep by one thread; chunks run in parallel.
     out : float64[n, n_record, N_RECORD_COLUMNS]
         Filled with one row per recorded period (see ``_layout``); rows after
-        a divergence are left untouched.
+        a divergence or past a lane's total are left untouched.
     status : int64[n]
-        ``STATUS_OK`` or ``STATUS_DIVERGED`` per point.
+        ``STATUS_OK`` or ``STATUS_DIVERGED`` per lane.
     done : int64[n]
         Periods completed (transient included) before any divergence.
+    stretch : float64[n, n_stretch]
+        Twins' per-period log-stretch samples ``log(distance / d0)``;
+        untouched after a twin stops (callers fill it with NaN).
     """
     for c in nb.prange(bounds.shape[0] - 1):
         lo = bounds[c]
         hi = bounds[c + 1]
         sub = state[:, lo:hi].copy()
         _integrate_chunk(
-            sub, np.ascontiguousarray(p[:, lo:hi]), alpha[lo:hi], fe[lo:hi], steps[lo:hi],
-            transient_periods, sgn_per_stage, out[lo:hi], status[lo:hi], done[lo:hi],
-        )
+            sub, np.ascontiguousarray(p[:, lo:hi]), alpha[lo:hi], fe[lo:hi], steps[lo:hi], lanes, lo,
+            sgn_per_stage, out[lo:hi], status[lo:hi], done[lo:hi], stretch[lo:hi],
+        )  # fmt: skip
         state[:, lo:hi] = sub

@@ -27,106 +27,37 @@ from ._layout import (
     STATUS_DIVERGED,
     STATUS_OK,
 )
-from ._sincos import sincos_poly
+from ._rhs import signum
+from ._steps import eq11_rk4
 from ._records import TWO_PI, record_close, record_open, record_sample, wrap_index
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
-def signum(x):
-    if x > 0.0:
-        return 1.0
-    if x < 0.0:
-        return -1.0
-    return 0.0
+def eq11_params(p, sgn_per_stage, vector):
+    """The parameter tuple of :func:`eq11_rhs` from a kernel parameter vector ``p``.
 
-
-@nb.njit(cache=True, nogil=True, inline="always")
-def rhs_sc(y, yd, s, c, thd, force, m, l, b1, b2, b3, g, M, C, K, k3, sgn, vector=False, inv_l=0.0, inv_m=0.0):
-    """Right-hand side of Eq. (11) given ``s = sin(theta)``, ``c = cos(theta)``.
-
-    ``vector`` (a constant at every call site) replaces the divisions by
-    ``l`` and ``m`` with multiplications by the given ``inv_l = 1/l`` and
-    ``inv_m = 1/m``, and the two by the denominator with one reciprocal:
-    divisions dominate the cost of the vectorised kernel, while the scalar
-    kernel keeps the plain form.
+    ``sgn_per_stage`` evaluates sgn(thetadot) at every RK4 stage instead of
+    once per step; ``vector`` (a constant at every call site) selects the
+    vectorisable formulation (see :func:`eq11_rhs`).
     """
-    fd = b1 * sgn + b2 * thd + b3 * thd * thd * sgn
-    denom = M + m * c * c
-    if vector:
-        inv_den = 1.0 / denom
-        common = force - C * yd - K * y - k3 * y * y * y - m * l * thd * thd * c + s * fd * inv_l
-        ydd = (common + m * g * s * s) * inv_den
-        thdd = -(s * inv_l) * (common + (M + m) * g) * inv_den - fd * (inv_l * inv_l * inv_m)
-        return yd, ydd, thd, thdd
-    common = force - C * yd - K * y - k3 * y * y * y - m * l * thd * thd * c + s * fd / l
-    ydd = (common + m * g * s * s) / denom
-    thdd = -(s / l) * (common + (M + m) * g) / denom - fd / (m * l * l)
-    return yd, ydd, thd, thdd
-
-
-@nb.njit(cache=True, nogil=True, inline="always")
-def emulated_rhs(y, yd, th, thd, force, m, l, b1, b2, b3, g, M, C, K, k3, sgn):
-    """Right-hand side of Eq. (11) with f_d evaluated for the given signum."""
-    return rhs_sc(y, yd, math.sin(th), math.cos(th), thd, force, m, l, b1, b2, b3, g, M, C, K, k3, sgn)
-
-
-@nb.njit(cache=True, nogil=True, inline="always")
-def _sincos(th, vector):
-    if vector:
-        return sincos_poly(th)
-    return math.sin(th), math.cos(th)
-
-
-@nb.njit(cache=True, nogil=True, inline="always")
-def rk4_step(
-    y, yd, th, thd, f0, fh, f1, dt, m, l, b1, b2, b3, g, M, C, K, k3, sgn_per_stage, vector, inv_l=0.0, inv_m=0.0
-):
-    """One classical RK4 step with scalar parameters; forcing f0, fh, f1 at t, t + dt/2, t + dt.
-
-    With ``sgn_per_stage`` false the signum of thetadot is taken once at the
-    start of the step and held across the stages, as in the paper.
-    ``vector`` selects the vectorisable formulation: :func:`sincos_poly`
-    instead of libm and the reciprocals ``inv_l = 1/l``, ``inv_m = 1/m`` in
-    :func:`rhs_sc` (callers pass a constant, so the branches fold away after
-    inlining).
-    """
-    h2 = 0.5 * dt
-    s0 = signum(thd)
-    s, c = _sincos(th, vector)
-    k1y, k1yd, k1t, k1td = rhs_sc(y, yd, s, c, thd, f0, m, l, b1, b2, b3, g, M, C, K, k3, s0, vector, inv_l, inv_m)
-    y2, yd2, th2, thd2 = y + h2 * k1y, yd + h2 * k1yd, th + h2 * k1t, thd + h2 * k1td
-    sg = signum(thd2) if sgn_per_stage else s0
-    s, c = _sincos(th2, vector)
-    k2y, k2yd, k2t, k2td = rhs_sc(y2, yd2, s, c, thd2, fh, m, l, b1, b2, b3, g, M, C, K, k3, sg, vector, inv_l, inv_m)
-    y3, yd3, th3, thd3 = y + h2 * k2y, yd + h2 * k2yd, th + h2 * k2t, thd + h2 * k2td
-    sg = signum(thd3) if sgn_per_stage else s0
-    s, c = _sincos(th3, vector)
-    k3y, k3yd, k3t, k3td = rhs_sc(y3, yd3, s, c, thd3, fh, m, l, b1, b2, b3, g, M, C, K, k3, sg, vector, inv_l, inv_m)
-    y4, yd4, th4, thd4 = y + dt * k3y, yd + dt * k3yd, th + dt * k3t, thd + dt * k3td
-    sg = signum(thd4) if sgn_per_stage else s0
-    s, c = _sincos(th4, vector)
-    k4y, k4yd, k4t, k4td = rhs_sc(y4, yd4, s, c, thd4, f1, m, l, b1, b2, b3, g, M, C, K, k3, sg, vector, inv_l, inv_m)
-    w = dt / 6.0
+    l = p[P_L]
+    m = p[P_M_PEND]
     return (
-        y + w * (k1y + 2.0 * k2y + 2.0 * k3y + k4y),
-        yd + w * (k1yd + 2.0 * k2yd + 2.0 * k3yd + k4yd),
-        th + w * (k1t + 2.0 * k2t + 2.0 * k3t + k4t),
-        thd + w * (k1td + 2.0 * k2td + 2.0 * k3td + k4td),
-    )
+        m, l, p[P_B1], p[P_B2], p[P_B3], p[P_G], p[P_M], p[P_C], p[P_K], p[P_K3],
+        sgn_per_stage, vector, 1.0 / l, 1.0 / m,
+    )  # fmt: skip
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
-def emulated_step(y, yd, th, thd, f0, fh, f1, dt, p, sgn_per_stage):
-    """One classical RK4 step (libm sin/cos); forcing f0, fh, f1 at t, t + dt/2, t + dt.
+def eq11_step(x, f0, fh, f1, dt, q):
+    """One RK4 step of Eq. (11) from state tuple ``x``; forcing f0, fh, f1 at t, t + dt/2, t + dt.
 
-    With ``sgn_per_stage`` false the signum of thetadot is taken once at the
-    start of the step and held across the stages, as in the paper.
+    ``q`` is :func:`eq11_params`. Unless ``q`` asks for it per stage, the
+    signum of thetadot is taken once at the start of the step and held
+    across the stages, as in the paper.
     """
-    return rk4_step(
-        y, yd, th, thd, f0, fh, f1, dt,
-        p[P_M_PEND], p[P_L], p[P_B1], p[P_B2], p[P_B3], p[P_G], p[P_M], p[P_C], p[P_K], p[P_K3],
-        sgn_per_stage, False,
-    )
+    s0 = signum(x[3])
+    return eq11_rk4(x, (f0, s0), (fh, s0), (f1, s0), dt, q)
 
 
 @nb.njit(cache=True, nogil=True)
@@ -173,6 +104,7 @@ def emulated_periods(
     n = steps_per_period
     dt = 1.0 / (fe * n)
     table = forcing_table(alpha, n)
+    q = eq11_params(p, sgn_per_stage, False)
     y, yd, th, thd = state[0], state[1], state[2], state[3]
     record_periods = out.shape[0]
     total = transient_periods + record_periods
@@ -184,9 +116,7 @@ def emulated_periods(
             record_open(row)
             record_sample(row, y, th)
         for j in range(n):
-            y, yd, th, thd = emulated_step(
-                y, yd, th, thd, table[2 * j], table[2 * j + 1], table[2 * j + 2], dt, p, sgn_per_stage
-            )
+            y, yd, th, thd = eq11_step((y, yd, th, thd), table[2 * j], table[2 * j + 1], table[2 * j + 2], dt, q)
             if recording:
                 record_sample(row, y, th)
         if not (math.isfinite(y) and math.isfinite(yd) and math.isfinite(th) and math.isfinite(thd)):
@@ -215,15 +145,14 @@ def emulated_trace(state, p, alpha, fe, steps_per_period, n_periods, sgn_per_sta
     n = steps_per_period
     dt = 1.0 / (fe * n)
     table = forcing_table(alpha, n)
+    q = eq11_params(p, sgn_per_stage, False)
     y, yd, th, thd = state[0], state[1], state[2], state[3]
     out[0, 0], out[0, 1], out[0, 2], out[0, 3], out[0, 4] = 0.0, y, yd, th, thd
     status = STATUS_OK
     k = 0
     for period in range(n_periods):
         for j in range(n):
-            y, yd, th, thd = emulated_step(
-                y, yd, th, thd, table[2 * j], table[2 * j + 1], table[2 * j + 2], dt, p, sgn_per_stage
-            )
+            y, yd, th, thd = eq11_step((y, yd, th, thd), table[2 * j], table[2 * j + 1], table[2 * j + 2], dt, q)
             k += 1
             if k % stride == 0:
                 i = k // stride

@@ -4,6 +4,8 @@ Kernels return integer status codes only; :mod:`pendsweep.status` turns them
 into names and messages. A record row holds one forcing period.
 """
 
+from ..params import KERNEL_FIELDS
+
 # Status codes returned by kernels.
 STATUS_OK = 0
 STATUS_DIVERGED = 1  # state became non-finite
@@ -30,7 +32,14 @@ RECORD_COLUMNS = (
     "y_absmax",
     "rotations",
 )
+#: Column index by name, for code outside the kernels (``RECORD_INDEX["y_sec"]``).
+RECORD_INDEX = {name: i for i, name in enumerate(RECORD_COLUMNS)}
+#: The Poincare-section columns (y, ydot, theta, thetadot) of a record row.
+SECTION_COLUMNS = slice(RECORD_INDEX["y_sec"], RECORD_INDEX["thetadot_sec"] + 1)
 
-# Index of each parameter in the kernel parameter vector (ModelParams.kernel_array).
-P_M_PEND, P_L, P_B1, P_B2, P_B3, P_G, P_M, P_C, P_K, P_K3 = range(10)
-N_PARAMS = 10
+# Index of each parameter in the kernel parameter vector, looked up in its one
+# declaration (the kernel fields of ModelParams, see params.KERNEL_FIELDS).
+P_M_PEND, P_L, P_B1, P_B2, P_B3, P_G, P_M, P_C, P_K, P_K3 = (
+    KERNEL_FIELDS.index(name) for name in ("m", "l", "b1", "b2", "b3", "g", "M", "C", "K", "k3")
+)
+N_PARAMS = len(KERNEL_FIELDS)

@@ -15,10 +15,7 @@ import math
 import numba as nb
 import numpy as np
 
-
-@nb.njit(cache=True, nogil=True, inline="always")
-def _mathieu_rhs(x, v, stiffness, kappa_p):
-    return v, -kappa_p * v - stiffness * x
+from ._steps import mathieu_rk4
 
 
 @nb.njit(cache=True, nogil=True)
@@ -55,12 +52,7 @@ def mathieu_monodromy(omega_p2, kappa_p, pump_sin, pump_cos, omega, steps):
             sh = omega_p2 + pump_sin * math.sin(omega * th) + pump_cos * math.cos(omega * th)
             t1 = t + h
             s1 = omega_p2 + pump_sin * math.sin(omega * t1) + pump_cos * math.cos(omega * t1)
-            k1x, k1v = _mathieu_rhs(x, v, s0, kappa_p)
-            k2x, k2v = _mathieu_rhs(x + 0.5 * h * k1x, v + 0.5 * h * k1v, sh, kappa_p)
-            k3x, k3v = _mathieu_rhs(x + 0.5 * h * k2x, v + 0.5 * h * k2v, sh, kappa_p)
-            k4x, k4v = _mathieu_rhs(x + h * k3x, v + h * k3v, s1, kappa_p)
-            x += h / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x)
-            v += h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v)
+            x, v = mathieu_rk4((x, v), s0, sh, s1, h, (kappa_p,))
         out[0, col] = x
         out[1, col] = v
     return out

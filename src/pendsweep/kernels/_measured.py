@@ -10,9 +10,12 @@ import math
 import numba as nb
 import numpy as np
 
-from ._emulated import emulated_step, signum
+from ._actuator import hermite
+from ._emulated import eq11_params, eq11_step
 from ._layout import P_B1, P_B2, P_B3, P_G, P_K, P_K3, P_L, P_M_PEND, STATUS_DIVERGED, STATUS_OK
-from ._substructured import hermite, pendulum_acc
+from ._rhs import signum
+from ._steps import model_rk4, pivot_pendulum_rk4
+from ._substructured import interface_momentum
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
@@ -46,19 +49,13 @@ def pendulum_trace(state, p, dt, substeps, out):
     """
     m, l, b1, b2, b3, g = _pendulum_params(p)
     h = dt / substeps
-    h2 = 0.5 * h
     th, thd = state[0], state[1]
     out[0, 0], out[0, 1] = th, thd
     for i in range(1, out.shape[0]):
         for _ in range(substeps):
             # Eq. (2) with a fixed pivot: the platform acceleration is zero.
-            s = signum(thd)
-            k1 = pendulum_acc(th, thd, 0.0, s, m, l, b1, b2, b3, g)
-            k2 = pendulum_acc(th + h2 * thd, thd + h2 * k1, 0.0, s, m, l, b1, b2, b3, g)
-            k3 = pendulum_acc(th + h2 * (thd + h2 * k1), thd + h2 * k2, 0.0, s, m, l, b1, b2, b3, g)
-            k4 = pendulum_acc(th + h * (thd + h2 * k2), thd + h * k3, 0.0, s, m, l, b1, b2, b3, g)
-            th += h / 6.0 * (thd + 2.0 * (thd + h2 * k1) + 2.0 * (thd + h2 * k2) + (thd + h * k3))
-            thd += h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+            q = (signum(thd), m, l, b1, b2, b3, g)
+            th, thd = pivot_pendulum_rk4((th, thd), 0.0, 0.0, 0.0, h, q)
         if not (math.isfinite(th) and math.isfinite(thd)):
             out[i:, :] = np.nan
             return STATUS_DIVERGED
@@ -94,10 +91,9 @@ def driven_trace(state, p, force, force_half, gain, dt, out):
     """
     y, yd, th, thd = state[0], state[1], state[2], state[3]
     out[0, 0], out[0, 1], out[0, 2], out[0, 3] = y, yd, th, thd
+    q = eq11_params(p, False, False)
     for i in range(1, out.shape[0]):
-        y, yd, th, thd = emulated_step(
-            y, yd, th, thd, gain * force[i - 1], gain * force_half[i - 1], gain * force[i], dt, p, False
-        )
+        y, yd, th, thd = eq11_step((y, yd, th, thd), gain * force[i - 1], gain * force_half[i - 1], gain * force[i], dt, q)
         if not (math.isfinite(y) and math.isfinite(yd) and math.isfinite(th) and math.isfinite(thd)):
             out[i:, :] = np.nan
             return STATUS_DIVERGED
@@ -161,17 +157,17 @@ def substructured_replay(state, p, M1, C1, M2, C2, force, force_half, gain, gain
         ``STATUS_OK`` or ``STATUS_DIVERGED``.
     """
     m, l, b1, b2, b3, g = _pendulum_params(p)
-    K, k3 = p[P_K], p[P_K3]
+    model = (M1, C1, p[P_K], p[P_K3])
     ms = M2 + m
     h = dt / substeps
     ys, yds, th, thd = state[0], state[1], state[2], state[3]
     n = out.shape[0]
     x, xd, _a = _delayed_command(cmd, cmdd, k0, -dt, tau, dt)
-    mom_prev = ms * xd + C2 * x + m * l * thd * math.sin(th)
+    mom_prev = interface_momentum(xd, x, thd * math.sin(th), ms, C2, m, l)
     for i in range(n):
         k = k0 + i
         x, xd, _a = _delayed_command(cmd, cmdd, k, 0.0, tau, dt)
-        mom = ms * xd + C2 * x + m * l * thd * math.sin(th)
+        mom = interface_momentum(xd, x, thd * math.sin(th), ms, C2, m, l)
         f_fb = gain_fs * (mom - mom_prev) / dt
         mom_prev = mom
         out[i, 0], out[i, 1], out[i, 2], out[i, 3] = x, th, f_fb, cmd[k]
@@ -181,31 +177,15 @@ def substructured_replay(state, p, M1, C1, M2, C2, force, force_half, gain, gain
         f0 = gain * force[k] - f_fb
         fh = gain * force_half[k] - f_fb
         f1 = gain * force[k + 1] - f_fb
-        k1v = (f0 - C1 * yds - K * ys - k3 * ys * ys * ys) / M1
-        y2, v2 = ys + 0.5 * dt * yds, yds + 0.5 * dt * k1v
-        k2v = (fh - C1 * v2 - K * y2 - k3 * y2 * y2 * y2) / M1
-        y3, v3 = ys + 0.5 * dt * v2, yds + 0.5 * dt * k2v
-        k3v = (fh - C1 * v3 - K * y3 - k3 * y3 * y3 * y3) / M1
-        y4, v4 = ys + dt * v3, yds + dt * k3v
-        k4v = (f1 - C1 * v4 - K * y4 - k3 * y4 * y4 * y4) / M1
-        ys, yds = ys + dt / 6.0 * (yds + 2.0 * v2 + 2.0 * v3 + v4), yds + dt / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v)
+        ys, yds = model_rk4((ys, yds), f0, fh, f1, dt, model)
         cmd[k + 1], cmdd[k + 1] = ys, yds
         # Rig: the pendulum on the platform moving as the delayed command.
         for sub in range(substeps):
             r0 = sub * h
-            sgn = signum(thd)
             a1 = _delayed_command(cmd, cmdd, k, r0, tau, dt)[2]
             a2 = _delayed_command(cmd, cmdd, k, r0 + 0.5 * h, tau, dt)[2]
             a4 = _delayed_command(cmd, cmdd, k, r0 + h, tau, dt)[2]
-            q1 = pendulum_acc(th, thd, a1, sgn, m, l, b1, b2, b3, g)
-            q2 = pendulum_acc(th + 0.5 * h * thd, thd + 0.5 * h * q1, a2, sgn, m, l, b1, b2, b3, g)
-            thd2 = thd + 0.5 * h * q1
-            q3 = pendulum_acc(th + 0.5 * h * thd2, thd + 0.5 * h * q2, a2, sgn, m, l, b1, b2, b3, g)
-            thd3 = thd + 0.5 * h * q2
-            q4 = pendulum_acc(th + h * thd3, thd + h * q3, a4, sgn, m, l, b1, b2, b3, g)
-            thd4 = thd + h * q3
-            th = th + h / 6.0 * (thd + 2.0 * thd2 + 2.0 * thd3 + thd4)
-            thd = thd + h / 6.0 * (q1 + 2.0 * q2 + 2.0 * q3 + q4)
+            th, thd = pivot_pendulum_rk4((th, thd), a1, a2, a4, h, (signum(thd), m, l, b1, b2, b3, g))
         if not (math.isfinite(ys) and math.isfinite(th) and math.isfinite(thd)):
             out[i + 1 :, :] = np.nan
             return STATUS_DIVERGED

@@ -45,11 +45,13 @@ history and the filter's ``2 n_sections`` delay registers.
 """
 
 import math
+from typing import NamedTuple
 
 import numba as nb
 import numpy as np
 
-from ._emulated import forcing_table, signum
+from ._actuator import ACT_SERVO, delayed_segment, hermite_at, push, weighted_sum
+from ._emulated import forcing_table
 from ._layout import (
     N_RECORD_COLUMNS,
     P_B1,
@@ -67,9 +69,8 @@ from ._layout import (
     STATUS_UNSTABLE,
 )
 from ._records import TWO_PI, record_close, record_open, record_sample, wrap_index
-
-ACT_SERVO = 0
-ACT_HERMITE = 1
+from ._rhs import signum
+from ._steps import model_rk4, pivot_pendulum_rk4, servo_rig_rk4
 
 #: Columns of the time-series output of :func:`substructured_loop`.
 TRACE_COLUMNS = (
@@ -90,7 +91,8 @@ TRACE_COLUMNS = (
     "sync_error",
 )
 N_TRACE_COLUMNS = len(TRACE_COLUMNS)
-N_HEAD = 12  # scalar slots before the histories
+# Slots of the state vector (the histories follow, see state_offsets).
+S_Y, S_YDOT, S_THETA, S_THETADOT, S_X, S_XDOT = range(6)
 S_TICKS = 6
 S_XPREV1 = 7
 S_XPREV2 = 8
@@ -100,8 +102,72 @@ S_XPREV2 = 8
 S_P_XD = 9
 S_P_X = 10
 S_P_TH = 11
+N_HEAD = 12  # scalar slots before the histories
 #: Periods in a row with dominant high-frequency content that flag instability.
 HF_PERIODS = 2
+
+
+class LoopSettings(NamedTuple):
+    """Everything the loop needs besides its state, parameters, noise and outputs.
+
+    Attributes
+    ----------
+    M2, C2 : float
+        Platform mass [kg] and damping [kg/s] (physical).
+    alpha, fe : float
+        Forcing amplitude [N] and frequency [Hz].
+    steps_per_period, substeps : int
+        Controller ticks per forcing period (``dt = 1/(fe n)``) and rig substeps per tick.
+    actuator : int
+        ``ACT_SERVO`` or ``ACT_HERMITE`` (:mod:`pendsweep.kernels._actuator`).
+    tau, ws, zeta : float
+        Transport delay [s], servo natural frequency [rad/s] and damping ratio.
+    n_cmd : int
+        Length of the command delay line.
+    use_pred : bool
+        Predict the command; otherwise ``y*`` itself is sent.
+    w_pred, wd_pred : float64[N]
+        Predictor weights for value and slope on the ``y*`` history (most recent first).
+    use_filter : bool
+        Band-pass the measured force with ``sos``.
+    sos : float64[n_sections, 6]
+        Second-order sections (``b0 b1 b2 a0 a1 a2``, ``a0 = 1``).
+    use_force_pred : bool
+        Predict the filtered force forward with ``w_force`` (float64[N]).
+    enc_res, lvdt_res : float
+        Encoder [rad] and LVDT [m] quantisation steps (0: none).
+    harmonics : float64[3]
+        Load-cell vibration amplitudes [N] at 3, 5 and 7 times the forcing frequency.
+    stroke : float
+        Runaway limit on ``|x|`` and ``|y*|`` [m].
+    hf_ratio, hf_accel : float
+        High-frequency instability test, see the backend docs.
+    """
+
+    M2: float
+    C2: float
+    alpha: float
+    fe: float
+    steps_per_period: int
+    substeps: int
+    actuator: int
+    tau: float
+    ws: float
+    zeta: float
+    n_cmd: int
+    use_pred: bool
+    w_pred: np.ndarray
+    wd_pred: np.ndarray
+    use_filter: bool
+    sos: np.ndarray
+    use_force_pred: bool
+    w_force: np.ndarray
+    enc_res: float
+    lvdt_res: float
+    harmonics: np.ndarray
+    stroke: float
+    hf_ratio: float
+    hf_accel: float
 
 
 @nb.njit(cache=True, nogil=True)
@@ -116,52 +182,85 @@ def state_offsets(n_cmd, n_pred, n_sections):
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
-def delayed_segment(r, tau, dt, off, n_cmd):
-    """Command index and local time for delayed time ``t_k + r - tau``.
-
-    Returns ``(j, sigma)``: the hold / Hermite segment starts at command
-    ``c[j]`` (``off`` = 0 before this tick's command is pushed, 1 after) and
-    ``sigma`` in [0, 1] is the position inside it.
-    """
-    q = (r - tau) / dt
-    m = math.floor(q + 1e-9)
-    if m > 0:
-        m = 0
-    j = off - m
-    if j > n_cmd - 1:
-        j = n_cmd - 1
-    return j, q - m
-
-
-@nb.njit(cache=True, nogil=True, inline="always")
-def hermite(c0, d0, c1, d1, s, dt):
-    """Cubic Hermite on one step: value, first and second time derivative."""
-    s2 = s * s
-    s3 = s2 * s
-    v0 = dt * d0
-    v1 = dt * d1
-    x = (2 * s3 - 3 * s2 + 1) * c0 + (s3 - 2 * s2 + s) * v0 + (-2 * s3 + 3 * s2) * c1 + (s3 - s2) * v1
-    xd = ((6 * s2 - 6 * s) * c0 + (3 * s2 - 4 * s + 1) * v0 + (-6 * s2 + 6 * s) * c1 + (3 * s2 - 2 * s) * v1) / dt
-    xdd = ((12 * s - 6) * c0 + (6 * s - 4) * v0 + (-12 * s + 6) * c1 + (6 * s - 2) * v1) / (dt * dt)
-    return x, xd, xdd
-
-
-@nb.njit(cache=True, nogil=True, inline="always")
-def pendulum_acc(th, thd, xdd, sgn, m, l, b1, b2, b3, g):
-    fd = b1 * sgn + b2 * thd + b3 * thd * thd * sgn
-    return -(fd + m * l * (g + xdd) * math.sin(th)) / (m * l * l)
-
-
-@nb.njit(cache=True, nogil=True, inline="always")
-def hermite_at(cmd, cmdd, j, s, dt):
-    """Hermite segment from ``c[j]`` (older) to ``c[j - 1]`` (newer)."""
-    return hermite(cmd[j], cmdd[j], cmd[j - 1], cmdd[j - 1], s, dt)
-
-
-@nb.njit(cache=True, nogil=True, inline="always")
 def quantise(value, step):
     """``value`` rounded to a multiple of ``step`` (unchanged when ``step`` is 0)."""
     return step * round(value / step) if step > 0.0 else value
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def interface_momentum(xd, x, thd_sin_th, ms, C2, m, l):
+    """``P = m_s x' + C2 x + m l theta' sin(theta)``, whose rate is the interface force Eq. (4) [N s]."""
+    return ms * xd + C2 * x + m * l * thd_sin_th
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def load_cell(fs_true, noise, harmonics, phase):
+    """Measured force: the true tick-mean force plus white noise and odd servo harmonics [N]."""
+    return (
+        fs_true
+        + noise
+        + harmonics[0] * math.sin(3.0 * phase)
+        + harmonics[1] * math.sin(5.0 * phase)
+        + harmonics[2] * math.sin(7.0 * phase)
+    )
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def force_path(f_meas, cfg, z, fh):
+    """The fed-back force: optional band-pass (DF-II transposed), then optional forward prediction."""
+    f_fb = f_meas
+    if cfg.use_filter:
+        sos = cfg.sos
+        for sec in range(sos.shape[0]):
+            out = sos[sec, 0] * f_fb + z[2 * sec]
+            z[2 * sec] = sos[sec, 1] * f_fb - sos[sec, 4] * out + z[2 * sec + 1]
+            z[2 * sec + 1] = sos[sec, 2] * f_fb - sos[sec, 5] * out
+            f_fb = out
+        if cfg.use_force_pred:
+            push(fh, f_fb)
+            f_fb = weighted_sum(cfg.w_force, fh)
+    return f_fb
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def next_command(ys, yds, cfg, yh, cmd, cmdd):
+    """Push the command for the next tick: ``y*`` predicted by ``tau_hat``, or ``y*`` itself."""
+    push(yh, ys)
+    if cfg.use_pred:
+        push(cmd, weighted_sum(cfg.w_pred, yh))
+        push(cmdd, weighted_sum(cfg.wd_pred, yh))
+    else:
+        push(cmd, ys)
+        push(cmdd, yds)
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def rig_tick(x, xd, th, thd, cmd, cmdd, cfg, pend, dt):
+    """The rig over one controller tick in ``cfg.substeps`` RK4 substeps.
+
+    The delayed command is taken at each substep's midpoint, so hold and delay
+    are resolved to one substep; the signum of theta' is held over a substep.
+    ``pend = (m, l, b1, b2, b3, g)``.
+    """
+    h = dt / cfg.substeps
+    ws2 = cfg.ws * cfg.ws
+    tzw = 2.0 * cfg.zeta * cfg.ws
+    for sub in range(cfg.substeps):
+        r0 = sub * h
+        sgn = signum(thd)
+        if cfg.actuator == ACT_SERVO:
+            j, _s = delayed_segment(r0 + 0.5 * h, cfg.tau, dt, 1, cfg.n_cmd)
+            u = cmd[j]
+            x, xd, th, thd = servo_rig_rk4((x, xd, th, thd), u, u, u, h, (ws2, tzw, sgn) + pend)
+        else:
+            j, s = delayed_segment(r0 + 0.5 * h, cfg.tau, dt, 1, cfg.n_cmd)
+            s0 = s - 0.5 * h / dt  # segment time at the substep start
+            hs = h / dt
+            _x, _xd, a1 = hermite_at(cmd, cmdd, j, s0, dt)
+            _x, _xd, a2 = hermite_at(cmd, cmdd, j, s0 + 0.5 * hs, dt)
+            x, xd, a4 = hermite_at(cmd, cmdd, j, s0 + hs, dt)
+            th, thd = pivot_pendulum_rk4((th, thd), a1, a2, a4, h, (sgn,) + pend)
+    return x, xd, th, thd
 
 
 @nb.njit(cache=True, nogil=True)
@@ -178,87 +277,124 @@ def trip(row, records, r_idx, ys, yds, th, thd, enc_res):
         records[r, :] = row
 
 
+@nb.njit(cache=True, nogil=True, inline="always")
+def write_trace(tr, t, fe_t, ys, yds, command, x, xd, x_meas, th_x, th, thd, f_meas, fs_true, f_fb):
+    """One row of :data:`TRACE_COLUMNS`."""
+    tr[0] = t
+    tr[1] = fe_t
+    tr[2] = ys
+    tr[3] = yds
+    tr[4] = command
+    tr[5] = x
+    tr[6] = xd
+    tr[7] = x_meas
+    tr[8] = th_x
+    tr[9] = th
+    tr[10] = thd
+    tr[11] = f_meas
+    tr[12] = fs_true
+    tr[13] = f_fb
+    tr[14] = ys - x_meas
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def high_frequency_growth(sum_x2, sum_h2, n, dt, we, cfg):
+    """Whether the period's rms x'' at the controller rate is dominated by high frequencies.
+
+    Compares the rms second difference of ``x`` with what a pure
+    forcing-frequency motion of the same rms would give.
+    """
+    hf = math.sqrt(sum_h2 / n) / (dt * dt)
+    smooth = math.sqrt(sum_x2 / n) * we * we
+    return hf > cfg.hf_accel and hf > cfg.hf_ratio * smooth
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def controller_tick(s, hist, jstep, k, tick, dt, we, table, model, pend, ms, cfg, noise_f, noise_x, row, tr):
+    """One controller tick, steps a-e of the module docstring, on the state vector ``s``.
+
+    ``hist = (cmd, cmdd, y_hist, f_hist, filter registers)`` are views into
+    the state; ``tr`` is the trace row to fill (length 0: none).
+    """
+    cmd, cmdd, yh, fh, z = hist
+    m, l = pend[0], pend[1]
+    ys, yds, th, thd, x, xd = s[S_Y], s[S_YDOT], s[S_THETA], s[S_THETADOT], s[S_X], s[S_XDOT]
+    # a. sensors. The load cell is read through an integrating ADC: the sample
+    # is the mean of F_s over the last tick, which is exact as a momentum
+    # difference because F_s = dP/dt (see the module docstring).
+    mom_prev = interface_momentum(s[S_P_XD], s[S_P_X], s[S_P_TH], ms, cfg.C2, m, l)
+    s[S_P_XD], s[S_P_X], s[S_P_TH] = xd, x, thd * math.sin(th)
+    fs_true = (interface_momentum(s[S_P_XD], s[S_P_X], s[S_P_TH], ms, cfg.C2, m, l) - mom_prev) / dt
+    f_meas = load_cell(fs_true, noise_f[tick], cfg.harmonics, we * (jstep * dt))
+    th_x = quantise(th, cfg.enc_res)
+    x_meas = quantise(x, cfg.lvdt_res) + noise_x[tick]
+    # b. force path
+    f_fb = force_path(f_meas, cfg, z, fh)
+    record_sample(row, ys, th_x)
+    if tr.shape[0] > 0:
+        write_trace(tr, k * dt, table[2 * jstep], ys, yds, cmd[0], x, xd, x_meas, th_x, th, thd, f_meas, fs_true, f_fb)
+    # c. numerical model, Eq. (3), force held over the step
+    ys, yds = model_rk4(
+        (ys, yds), table[2 * jstep] - f_fb, table[2 * jstep + 1] - f_fb, table[2 * jstep + 2] - f_fb, dt, model
+    )
+    # d. command for t_k+1; e. rig over [t_k, t_k+1]
+    next_command(ys, yds, cfg, yh, cmd, cmdd)
+    x, xd, th, thd = rig_tick(x, xd, th, thd, cmd, cmdd, cfg, pend, dt)
+    s[S_Y], s[S_YDOT], s[S_THETA], s[S_THETADOT], s[S_X], s[S_XDOT] = ys, yds, th, thd, x, xd
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def close_period(s, row, records, r_idx, status, hf_run, tracing, cfg):
+    """Period-end bookkeeping: divergence, trips, rewrapping and the record row.
+
+    Returns the final ``(status, hf_run)``; a status other than OK ends the run.
+    """
+    ys, yds, th, thd = s[S_Y], s[S_YDOT], s[S_THETA], s[S_THETADOT]
+    if status == STATUS_OK and not (math.isfinite(th) and math.isfinite(thd)):
+        status = STATUS_DIVERGED
+    if status == STATUS_DIVERGED:
+        for r in range(max(r_idx, 0), records.shape[0]):
+            records[r, :] = np.nan
+        return status, hf_run
+    if status == STATUS_OK and hf_run >= HF_PERIODS:
+        status = STATUS_UNSTABLE
+    if status == STATUS_UNSTABLE:
+        trip(row, records, r_idx, ys, yds, th, thd, cfg.enc_res)
+        return status, hf_run
+    turns = 0
+    if not tracing:
+        turns = wrap_index(th)
+        th -= TWO_PI * turns
+        s[S_THETA] = th
+    if r_idx >= 0:
+        th_x = quantise(th, cfg.enc_res)
+        record_sample(row, ys, th_x)
+        record_close(row, ys, yds, th_x, thd, turns)
+        records[r_idx, :] = row
+    return status, hf_run
+
+
 @nb.njit(cache=True, nogil=True)
-def substructured_loop(
-    state,
-    p,
-    M2,
-    C2,
-    alpha,
-    fe,
-    steps_per_period,
-    substeps,
-    actuator,
-    tau,
-    ws,
-    zeta,
-    n_cmd,
-    w_pred,
-    wd_pred,
-    use_pred,
-    sos,
-    use_filter,
-    w_force,
-    use_force_pred,
-    enc_res,
-    lvdt_res,
-    noise_f,
-    noise_x,
-    harmonics,
-    stroke,
-    hf_ratio,
-    hf_accel,
-    transient_periods,
-    records,
-    trace,
-    stride,
-):
+def substructured_loop(state, p, cfg, noise_f, noise_x, transient_periods, records, trace, stride):
     """Run the substructured loop for whole forcing periods.
 
     Parameters
     ----------
     state : float64[L]
-        See the module docstring; overwritten with the final state.
-    p : float64[10]
+        See the module docstring and :func:`state_offsets`; overwritten with the final state.
+    p : float64[N_PARAMS]
         ``ModelParams.kernel_array()``; ``M`` and ``C`` are the totals, the
         numerical model uses ``M1 = M - M2`` and ``C1 = C - C2``.
-    M2, C2 : float
-        Platform mass [kg] and damping [kg/s] (physical).
-    alpha, fe : float
-        Forcing amplitude [N] and frequency [Hz].
-    steps_per_period, substeps : int
-        Controller ticks per forcing period (``dt = 1/(fe n)``) and rig
-        substeps per tick.
-    actuator : int
-        ``ACT_SERVO`` or ``ACT_HERMITE``.
-    tau, ws, zeta : float
-        Transport delay [s], servo natural frequency [rad/s] and damping ratio.
-    n_cmd : int
-        Length of the command delay line.
-    w_pred, wd_pred : float64[N]
-        Predictor weights for value and derivative on the ``y*`` history
-        (most recent first); ``use_pred`` false sends ``y*`` itself.
-    sos : float64[n_sections, 6]
-        Band-pass second-order sections (``b0 b1 b2 a0 a1 a2``, ``a0 = 1``).
-    w_force : float64[N]
-        Predictor weights for the filtered force (``use_force_pred``).
-    enc_res, lvdt_res : float
-        Encoder [rad] and LVDT [m] quantisation steps (0: none).
+    cfg : LoopSettings
+        Loop options (actuator, predictor, filter, sensors, monitors).
     noise_f, noise_x : float64[n_ticks]
         Load-cell [N] and LVDT [m] noise, one value per tick.
-    harmonics : float64[3]
-        Load-cell vibration amplitudes [N] at 3, 5 and 7 times the forcing frequency.
-    stroke : float
-        Runaway limit on ``|x|`` and ``|y*|`` [m].
-    hf_ratio, hf_accel : float
-        High-frequency instability test, see the backend docs.
     transient_periods : int
         Periods run before the ``records`` rows (``records`` may have 0 rows).
     records : float64[n_rec, N_RECORD_COLUMNS]
         Per-period records of ``y*`` and the measured angle ``theta_x``.
     trace : float64[n_rows, N_TRACE_COLUMNS]
-        Every ``stride``-th tick (0 rows: no trace); theta is not rewrapped
-        when tracing.
+        Every ``stride``-th tick (0 rows: no trace); theta is not rewrapped when tracing.
 
     Returns
     -------
@@ -267,236 +403,43 @@ def substructured_loop(
     periods_done : int
         Periods completed before the run stopped.
     """
-    m = p[P_M_PEND]
-    l = p[P_L]
-    b1 = p[P_B1]
-    b2 = p[P_B2]
-    b3 = p[P_B3]
-    g = p[P_G]
-    M1 = p[P_M] - M2
-    C1 = p[P_C] - C2
-    K = p[P_K]
-    k3 = p[P_K3]
-    ms = M2 + m
-    n = steps_per_period
-    dt = 1.0 / (fe * n)
-    h = dt / substeps
-    we = TWO_PI * fe
-    table = forcing_table(alpha, n)
-    n_pred = w_pred.shape[0]
-    n_sec = sos.shape[0]
-    o_cmd, o_cmdd, o_yh, o_fh, o_z, _ = state_offsets(n_cmd, n_pred, n_sec)
-    cmd = state[o_cmd:o_cmdd]
-    cmdd = state[o_cmdd:o_yh]
-    yh = state[o_yh:o_fh]
-    fh = state[o_fh:o_z]
-    z = state[o_z : o_z + 2 * n_sec]
-    ys, yds, th, thd, x, xd = state[0], state[1], state[2], state[3], state[4], state[5]
-    xp1, xp2 = state[S_XPREV1], state[S_XPREV2]
-    mom_prev = ms * state[S_P_XD] + C2 * state[S_P_X] + m * l * state[S_P_TH]
-    p_xd, p_x, p_th = state[S_P_XD], state[S_P_X], state[S_P_TH]
-    servo = actuator == ACT_SERVO
-    ws2 = ws * ws
-    tzw = 2.0 * zeta * ws
-    n_rec = records.shape[0]
+    pend = (p[P_M_PEND], p[P_L], p[P_B1], p[P_B2], p[P_B3], p[P_G])
+    model = (p[P_M] - cfg.M2, p[P_C] - cfg.C2, p[P_K], p[P_K3])
+    n = cfg.steps_per_period
+    dt = 1.0 / (cfg.fe * n)
+    we = TWO_PI * cfg.fe
+    table = forcing_table(cfg.alpha, n)
+    o_cmd, o_cmdd, o_yh, o_fh, o_z, end = state_offsets(cfg.n_cmd, cfg.w_pred.shape[0], cfg.sos.shape[0])
+    hist = (state[o_cmd:o_cmdd], state[o_cmdd:o_yh], state[o_yh:o_fh], state[o_fh:o_z], state[o_z:end])
+    no_row = np.empty(0)
     tracing = trace.shape[0] > 0
-    total = transient_periods + n_rec
-    hf_run = 0
     row = np.empty(N_RECORD_COLUMNS)  # the current period's running record
-    status = STATUS_OK
-    done = 0
-    tick = 0
-    for period in range(total):
-        r_idx = period - transient_periods
-        recording = r_idx >= 0
+    status, hf_run, done, tick = STATUS_OK, 0, 0, 0
+    for period in range(transient_periods + records.shape[0]):
         record_open(row)
         sum_x2 = 0.0
         sum_h2 = 0.0
         for jstep in range(n):
-            tk = jstep * dt
-            # a. sensors. The load cell is read through an integrating ADC: the
-            # sample is the mean of F_s over the last tick, which is exact as a
-            # momentum difference because F_s = dP/dt (see the module docstring).
-            p_xd, p_x, p_th = xd, x, thd * math.sin(th)
-            mom = ms * p_xd + C2 * p_x + m * l * p_th
-            fs_true = (mom - mom_prev) / dt
-            mom_prev = mom
-            ph = we * tk
-            f_meas = (
-                fs_true
-                + noise_f[tick]
-                + harmonics[0] * math.sin(3.0 * ph)
-                + harmonics[1] * math.sin(5.0 * ph)
-                + harmonics[2] * math.sin(7.0 * ph)
-            )
-            th_x = quantise(th, enc_res)
-            x_meas = quantise(x, lvdt_res) + noise_x[tick]
-            # b. force path
-            f_fb = f_meas
-            if use_filter:
-                for sec in range(n_sec):
-                    out = sos[sec, 0] * f_fb + z[2 * sec]
-                    z[2 * sec] = sos[sec, 1] * f_fb - sos[sec, 4] * out + z[2 * sec + 1]
-                    z[2 * sec + 1] = sos[sec, 2] * f_fb - sos[sec, 5] * out
-                    f_fb = out
-                if use_force_pred:
-                    for i in range(n_pred - 1, 0, -1):
-                        fh[i] = fh[i - 1]
-                    fh[0] = f_fb
-                    acc = 0.0
-                    for i in range(n_pred):
-                        acc += w_force[i] * fh[i]
-                    f_fb = acc
-            # outputs at t_k
-            record_sample(row, ys, th_x)
-            if tracing and (period * n + jstep) % stride == 0:
-                ti = (period * n + jstep) // stride
-                tr = trace[ti]
-                tr[0] = (period * n + jstep) * dt
-                tr[1] = table[2 * jstep]
-                tr[2] = ys
-                tr[3] = yds
-                tr[4] = cmd[0]
-                tr[5] = x
-                tr[6] = xd
-                tr[7] = x_meas
-                tr[8] = th_x
-                tr[9] = th
-                tr[10] = thd
-                tr[11] = f_meas
-                tr[12] = fs_true
-                tr[13] = f_fb
-                tr[14] = ys - x_meas
-            # c. numerical model, Eq. (3), force held over the step
-            fe0 = table[2 * jstep] - f_fb
-            feh = table[2 * jstep + 1] - f_fb
-            fe1 = table[2 * jstep + 2] - f_fb
-            k1y = yds
-            k1v = (fe0 - C1 * yds - K * ys - k3 * ys * ys * ys) / M1
-            y2 = ys + 0.5 * dt * k1y
-            v2 = yds + 0.5 * dt * k1v
-            k2y = v2
-            k2v = (feh - C1 * v2 - K * y2 - k3 * y2 * y2 * y2) / M1
-            y3 = ys + 0.5 * dt * k2y
-            v3 = yds + 0.5 * dt * k2v
-            k3y = v3
-            k3v = (feh - C1 * v3 - K * y3 - k3 * y3 * y3 * y3) / M1
-            y4 = ys + dt * k3y
-            v4 = yds + dt * k3v
-            k4y = v4
-            k4v = (fe1 - C1 * v4 - K * y4 - k3 * y4 * y4 * y4) / M1
-            ys = ys + dt / 6.0 * (k1y + 2.0 * k2y + 2.0 * k3y + k4y)
-            yds = yds + dt / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v)
-            # d. command for t_k+1
-            for i in range(n_pred - 1, 0, -1):
-                yh[i] = yh[i - 1]
-            yh[0] = ys
-            for i in range(n_cmd - 1, 0, -1):
-                cmd[i] = cmd[i - 1]
-                cmdd[i] = cmdd[i - 1]
-            if use_pred:
-                c = 0.0
-                cd = 0.0
-                for i in range(n_pred):
-                    c += w_pred[i] * yh[i]
-                    cd += wd_pred[i] * yh[i]
-                cmd[0] = c
-                cmdd[0] = cd
-            else:
-                cmd[0] = ys
-                cmdd[0] = yds
-            # e. rig substeps over [t_k, t_k+1]
-            for sub in range(substeps):
-                r0 = sub * h
-                sgn = signum(thd)
-                if servo:
-                    j, _s = delayed_segment(r0 + 0.5 * h, tau, dt, 1, n_cmd)
-                    u = cmd[j]
-                    a1 = ws2 * (u - x) - tzw * xd
-                    q1 = pendulum_acc(th, thd, a1, sgn, m, l, b1, b2, b3, g)
-                    x2 = x + 0.5 * h * xd
-                    xd2 = xd + 0.5 * h * a1
-                    th2 = th + 0.5 * h * thd
-                    thd2 = thd + 0.5 * h * q1
-                    a2 = ws2 * (u - x2) - tzw * xd2
-                    q2 = pendulum_acc(th2, thd2, a2, sgn, m, l, b1, b2, b3, g)
-                    x3 = x + 0.5 * h * xd2
-                    xd3 = xd + 0.5 * h * a2
-                    th3 = th + 0.5 * h * thd2
-                    thd3 = thd + 0.5 * h * q2
-                    a3 = ws2 * (u - x3) - tzw * xd3
-                    q3 = pendulum_acc(th3, thd3, a3, sgn, m, l, b1, b2, b3, g)
-                    x4 = x + h * xd3
-                    xd4 = xd + h * a3
-                    th4 = th + h * thd3
-                    thd4 = thd + h * q3
-                    a4 = ws2 * (u - x4) - tzw * xd4
-                    q4 = pendulum_acc(th4, thd4, a4, sgn, m, l, b1, b2, b3, g)
-                    x = x + h / 6.0 * (xd + 2.0 * xd2 + 2.0 * xd3 + xd4)
-                    xd = xd + h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
-                else:
-                    j, s = delayed_segment(r0 + 0.5 * h, tau, dt, 1, n_cmd)
-                    s0 = s - 0.5 * h / dt  # segment time at the substep start
-                    hs = h / dt
-                    _x, _xd, a1 = hermite_at(cmd, cmdd, j, s0, dt)
-                    _x, _xd, a2 = hermite_at(cmd, cmdd, j, s0 + 0.5 * hs, dt)
-                    x, xd, a4 = hermite_at(cmd, cmdd, j, s0 + hs, dt)
-                    q1 = pendulum_acc(th, thd, a1, sgn, m, l, b1, b2, b3, g)
-                    th2 = th + 0.5 * h * thd
-                    thd2 = thd + 0.5 * h * q1
-                    q2 = pendulum_acc(th2, thd2, a2, sgn, m, l, b1, b2, b3, g)
-                    th3 = th + 0.5 * h * thd2
-                    thd3 = thd + 0.5 * h * q2
-                    q3 = pendulum_acc(th3, thd3, a2, sgn, m, l, b1, b2, b3, g)
-                    th4 = th + h * thd3
-                    thd4 = thd + h * q3
-                    q4 = pendulum_acc(th4, thd4, a4, sgn, m, l, b1, b2, b3, g)
-                th = th + h / 6.0 * (thd + 2.0 * thd2 + 2.0 * thd3 + thd4)
-                thd = thd + h / 6.0 * (q1 + 2.0 * q2 + 2.0 * q3 + q4)
+            k = period * n + jstep
+            tr = trace[k // stride] if tracing and k % stride == 0 else no_row
+            controller_tick(state, hist, jstep, k, tick, dt, we, table, model, pend, pend[0] + cfg.M2, cfg,
+                            noise_f, noise_x, row, tr)  # fmt: skip
             tick += 1
             # instability monitors: second difference of x at the controller rate
-            d2 = x - 2.0 * xp1 + xp2
-            xp2 = xp1
-            xp1 = x
+            x = state[S_X]
+            d2 = x - 2.0 * state[S_XPREV1] + state[S_XPREV2]
+            state[S_XPREV2], state[S_XPREV1] = state[S_XPREV1], x
             sum_x2 += x * x
             sum_h2 += d2 * d2
-            if not (abs(x) <= stroke and abs(ys) <= stroke):
-                status = STATUS_UNSTABLE if math.isfinite(x) and math.isfinite(ys) else STATUS_DIVERGED
+            if not (abs(x) <= cfg.stroke and abs(state[S_Y]) <= cfg.stroke):
+                finite = math.isfinite(x) and math.isfinite(state[S_Y])
+                status = STATUS_UNSTABLE if finite else STATUS_DIVERGED
                 break
-        if status == STATUS_OK and not (math.isfinite(th) and math.isfinite(thd)):
-            status = STATUS_DIVERGED
-        if status == STATUS_UNSTABLE:
-            trip(row, records, r_idx, ys, yds, th, thd, enc_res)
+        if status == STATUS_OK:
+            hf_run = hf_run + 1 if high_frequency_growth(sum_x2, sum_h2, n, dt, we, cfg) else 0
+        status, hf_run = close_period(state, row, records, period - transient_periods, status, hf_run, tracing, cfg)
+        if status != STATUS_OK:
             break
-        if status == STATUS_DIVERGED:
-            for r in range(max(r_idx, 0), n_rec):
-                for c_ in range(N_RECORD_COLUMNS):
-                    records[r, c_] = np.nan
-            break
-        # high-frequency content: rms of x'' seen at the controller rate versus
-        # what a pure forcing-frequency motion of the same rms would give
-        hf = math.sqrt(sum_h2 / n) / (dt * dt)
-        smooth = math.sqrt(sum_x2 / n) * we * we
-        if hf > hf_accel and hf > hf_ratio * smooth:
-            hf_run += 1
-        else:
-            hf_run = 0
-        if hf_run >= HF_PERIODS:
-            status = STATUS_UNSTABLE
-            trip(row, records, r_idx, ys, yds, th, thd, enc_res)
-            break
-        turns = 0
-        if not tracing:
-            turns = wrap_index(th)
-            th -= TWO_PI * turns
-        if recording:
-            th_x = quantise(th, enc_res)
-            record_sample(row, ys, th_x)
-            record_close(row, ys, yds, th_x, thd, turns)
-            records[r_idx, :] = row
         done = period + 1
-    state[0], state[1], state[2], state[3], state[4], state[5] = ys, yds, th, thd, x, xd
     state[S_TICKS] += tick
-    state[S_XPREV1], state[S_XPREV2] = xp1, xp2
-    state[S_P_XD], state[S_P_X], state[S_P_TH] = p_xd, p_x, p_th
     return status, done

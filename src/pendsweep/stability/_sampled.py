@@ -42,12 +42,13 @@ import numpy as np
 import scipy.linalg
 from scipy import signal
 
-from ..backends.substructured import (
+from ..loop import (
     ACTUATORS,
     MAX_PREDICTOR_ORDER,
     design_force_filter,
-    filter_phase,
-    phase_to_delay,
+    effective_delay,
+    filter_delay,
+    prediction_horizon,
     predictor_weights,
 )
 from ..errors import ConfigError
@@ -80,14 +81,18 @@ class SampledLoop:
     predictor_points : int
         Samples N in the fit, ``>= predictor_order + 1``.
     tau_hat : float or None
-        Prediction horizon [s]; None matches it to the transport delay.
+        Prediction horizon [s]; None: matched, the total effective delay of the
+        transfer system at ``filter_frequency`` (the transport delay for the
+        ``"delay"`` actuator; transport + hold + servo lag for ``"servo"``), as
+        in the backend (:func:`pendsweep.loop.prediction_horizon`).
     filter_band : (float, float) or None
         Butterworth band-pass edges of the force filter [Hz]; None: no filter.
     filter_order : int
         Butterworth order of the band-pass.
     filter_frequency : float
-        Frequency [Hz] at which the filter's phase lag becomes the horizon of
-        the force prediction (the backend uses the forcing frequency).
+        Design frequency [Hz]: the filter's phase lag there becomes the horizon
+        of the force prediction, and a matched ``tau_hat`` is the effective
+        delay there (the backend uses the forcing frequency for both).
     """
 
     dt: float = 1e-3
@@ -235,7 +240,10 @@ def open_loop(loop: LoopParams, tau: float, cfg: SampledLoop) -> Rational:
     delta = max(tau - d * dt, 0.0)
     ny, nv, dm = _model(loop, dt)
     if cfg.predicts:
-        horizon = tau if cfg.tau_hat is None else cfg.tau_hat
+        matched = effective_delay(
+            cfg.actuator, tau, cfg.servo_bandwidth, cfg.servo_damping, dt, cfg.filter_frequency
+        )
+        horizon = prediction_horizon(cfg.tau_hat, matched)
         w, wd = predictor_weights(cfg.predictor_order, cfg.predictor_points, horizon, dt)
         to_c, to_cd = _mul((ny, dm), _fir(w)), _mul((ny, dm), _fir(wd))
     else:
@@ -253,7 +261,7 @@ def open_loop(loop: LoopParams, tau: float, cfg: SampledLoop) -> Rational:
         parts = [(sec[:3], sec[3:]) for sec in sos]
         if cfg.predicts:
             f = cfg.filter_frequency
-            lag = phase_to_delay(filter_phase(sos, f, dt), f)
+            lag = filter_delay(sos, f, dt)
             parts.append(_fir(predictor_weights(cfg.predictor_order, cfg.predictor_points, lag, dt)[0]))
         L = _mul(L, *parts)
     return L

@@ -1,0 +1,19 @@
+"""The RK4 step of each right-hand side (CPU), built once by :func:`make_rk4_step`.
+
+Each step has the signature ``step(x, u0, uh, u1, h, p)`` of
+:func:`pendsweep.kernels._rk4.make_rk4_step`; the right-hand sides and their
+tuples are documented in :mod:`pendsweep.kernels._rhs`.
+"""
+
+import numba as nb
+
+from ._rhs import PHYSICS
+from ._rk4 import make_rk4_step
+
+_INLINE = nb.njit(cache=True, nogil=True, inline="always")
+
+eq11_rk4 = make_rk4_step(PHYSICS.eq11_rhs, _INLINE)
+model_rk4 = make_rk4_step(PHYSICS.model_rhs, _INLINE)
+servo_rig_rk4 = make_rk4_step(PHYSICS.servo_rig_rhs, _INLINE)
+pivot_pendulum_rk4 = make_rk4_step(PHYSICS.pivot_pendulum_rhs, _INLINE)
+mathieu_rk4 = make_rk4_step(PHYSICS.mathieu_rhs, _INLINE)

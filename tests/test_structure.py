@@ -1,0 +1,65 @@
+"""Each piece of physics is written once (issue 10): checks anyone can rerun.
+
+Equivalent shell checks::
+
+    grep -rn "2.0 \\* k2\\|2.0 \\* k2y\\|+ 2.0 \\*" src/pendsweep   # the RK4 weighted sum: _tuple.py only
+    grep -rn '"m", "l", "b1"' src/pendsweep                      # parameter order: nowhere by hand
+"""
+
+import ast
+import re
+from pathlib import Path
+
+import pytest
+
+SRC = Path(__file__).resolve().parents[1] / "src" / "pendsweep"
+KERNEL_FILES = sorted((SRC / "kernels").glob("*.py"))
+#: The longest a numba kernel function may be (issue 10: "no kernel function over about 80 lines").
+MAX_KERNEL_LINES = 80
+
+
+def _python_files():
+    return sorted(SRC.rglob("*.py"))
+
+
+def test_rk4_weighted_stage_sum_is_written_once():
+    # "k1 + 2 k2 + 2 k3 + k4" in any spelling: a "+ 2.0 *" or "+ 2 *" followed by another of them.
+    pattern = re.compile(r"\+\s*2(\.0)?\s*\*\s*[\w\[\]{}.]+\s*\+\s*2(\.0)?\s*\*")
+    hits = [f"{p.relative_to(SRC)}:{i}" for p in _python_files() for i, line in enumerate(p.read_text().splitlines(), 1)
+            if pattern.search(line)]  # fmt: skip
+    files = sorted({h.split(":")[0] for h in hits})
+    # _tuple.py twice (the plain form and the compiled overload's template), and the benchmark's
+    # independent numpy/JAX peer, which by design shares no code with the kernels.
+    assert files == ["bench/throughput.py", "kernels/_tuple.py"], hits
+    assert sum(h.startswith("kernels/_tuple.py") for h in hits) == 2, hits
+
+
+@pytest.mark.parametrize("rhs", ["eq11_rhs", "model_rhs", "servo_rig_rhs", "pivot_pendulum_rhs", "mathieu_rhs"])
+def test_each_right_hand_side_is_defined_once(rhs):
+    defs = [p.relative_to(SRC) for p in _python_files() if re.search(rf"^def {rhs}\(", p.read_text(), re.M)]
+    assert [str(d) for d in defs] == ["kernels/_rhs.py"]
+
+
+def test_damping_law_is_written_once():
+    law = re.compile(r"b1\s*\*\s*\w+\s*\+\s*b2\s*\*\s*\w+\s*\+\s*b3")
+    hits = [str(p.relative_to(SRC)) for p in _python_files() if law.search(p.read_text())]
+    # The rhs module, and the independent array-module peer of the benchmark (numpy/JAX cannot call numba).
+    assert sorted(hits) == ["bench/throughput.py", "kernels/_rhs.py"]
+
+
+def test_parameter_order_is_never_written_by_hand():
+    literal = re.compile(r"""["']m["'],\s*["']l["'],\s*["']b1["']""")
+    hits = [str(p.relative_to(SRC)) for p in _python_files() if literal.search(p.read_text())]
+    assert hits == ["kernels/_layout.py"]  # looks the indices up by name in params.KERNEL_FIELDS
+
+
+@pytest.mark.parametrize("path", KERNEL_FILES, ids=lambda p: p.name)
+def test_no_kernel_function_is_longer_than_80_lines(path):
+    tree = ast.parse(path.read_text())
+    for node in ast.walk(tree):
+        if isinstance(node, ast.FunctionDef):
+            # Count code lines: the docstring documents the contract and does not count.
+            doc = ast.get_docstring(node)
+            doc_lines = len(doc.splitlines()) + 2 if doc else 0
+            length = node.end_lineno - node.lineno + 1 - doc_lines
+            assert length <= MAX_KERNEL_LINES, f"{path.name}:{node.name} has {length} code lines"
