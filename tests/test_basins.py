@@ -301,6 +301,17 @@ def test_cli_basins_json_and_bad_input(tmp_path):
         assert key in summary
     assert set(summary["settling_periods"]) >= {"median", "q90"}
     assert summary["runs"] == 30
+    scan = tmp_path / "scan.json"
+    result = runner.invoke(main, ["basins", "alpha", "--from", "30", "--to", "31", "--step", "1", "--samples", "12",
+                                  "--max-periods", "300", "-o", str(tmp_path / "s.parquet"), "--json", str(scan),
+                                  "--plot", str(tmp_path / "s.png"), "--no-progress"])
+    assert result.exit_code == 0, result.output
+    summary = json.loads(scan.read_text())
+    assert summary["values"] == [30.0, 31.0] and len(summary["unsettled_after_100"]) == 2
+    for cls, fractions in summary["classes"].items():
+        assert len(fractions) == 2
+    assert all(sum(f[i] for f in summary["classes"].values()) == pytest.approx(1.0) for i in range(2))
+    assert (tmp_path / "s.png").exists()
     for bad, word in ((["--grid", "0x5"], "--grid"), (["--theta", "2:1"], "--theta"), (["--samples", "0"], "samples"),
                       (["--max-periods", "5"], "max_periods")):
         r = runner.invoke(main, ["basins", "--alpha", "30", *bad, "-o", str(tmp_path / "x.parquet")])

@@ -21,6 +21,7 @@ from matplotlib.patches import Patch  # noqa: E402
 
 from ..basins import BasinConfig, run_basins, scan_summary, survival  # noqa: E402
 from ..maps import MapConfig, hopf_boundaries, run_map  # noqa: E402
+from ..params import PARAM_SPECS  # noqa: E402
 from . import figure  # noqa: E402
 
 #: Colour per motion class; periodic orbits by period.
@@ -38,6 +39,10 @@ CLASS_COLOURS = {
     "unsettled": "tab:red",
     "n/a": "black",
 }
+
+
+def _axis_label(parameter: str) -> str:
+    return f"{parameter} [{PARAM_SPECS[parameter].unit}]"
 
 
 def _colour(label: str) -> str:
@@ -101,7 +106,7 @@ def plot_scan(summary: dict[str, Any], output: Path) -> Path:
                     label=label)
     ax.set_xlim(values[0], values[-1])
     ax.set_ylim(0, 1)
-    ax.set_xlabel(f"{summary['parameter']}")
+    ax.set_xlabel(_axis_label(summary["parameter"]))
     ax.set_ylabel("fraction of starts (basin)")
     ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.01, 0.5))
     fig.savefig(output, dpi=150)
@@ -142,8 +147,8 @@ def plot_map(rows: pd.DataFrame, config: MapConfig, boundaries: pd.DataFrame | N
                 ax.plot(*xy, label=label, **style)
             ax.set_xlim(extent[0], extent[1])
             ax.set_ylim(extent[2], extent[3])
-        ax.set_xlabel(config.x)
-        ax.set_ylabel(config.y)
+        ax.set_xlabel(_axis_label(config.x))
+        ax.set_ylabel(_axis_label(config.y))
     if boundaries is not None:
         axes[1].legend(fontsize=7, loc="upper left")
     axes[0].set_title(f"motion after ≤ {config.max_periods} periods from θ = {config.initial[0]:g} rad", fontsize=9)
