@@ -112,7 +112,7 @@ def test_duffing_symmetric_grid_equal_basins_and_energy_wells():
 def test_duffing_basins_agree_with_independent_integrator():
     rng = np.random.default_rng(7)
     starts = np.stack([rng.uniform(-2, 2, 30), rng.uniform(-2, 2, 30)], axis=1)
-    runs, _, labels, attractors = duffing_wells(starts)
+    _, _, labels, attractors = duffing_wells(starts)
     well_x = np.array([a.cycle[0, 2] for a in attractors])[labels]
 
     def rhs(t, z):
@@ -134,7 +134,7 @@ def test_binomial_standard_errors_match_the_spread_over_seeds():
     for g in range(groups):
         part = slice(g * per, (g + 1) * per)
         sub = type(runs)(**{k: v[part] for k, v in vars(runs).items()})
-        summary, _, attractors = summarize(sub, 300)
+        summary, _, _ = summarize(sub, 300)
         right = next(a for a in summary["attractors"] if a["cycle"][0][2] > 0)
         fractions.append(right["fraction"])
         errors.append(right["stderr"])

@@ -45,7 +45,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from .classify import MAX_PERIOD, PERIODIC_TOL, section_difference
-from .kernels._layout import REC_ROTATIONS, REC_THETA_ABSMAX, REC_THETADOT_SEC, REC_Y_SEC
+from .kernels._layout import (
+    REC_ROTATIONS,
+    REC_THETA_ABSMAX,
+    REC_THETADOT_SEC,
+    REC_Y_SEC,
+)
 from .params import ENCODER_RESOLUTION
 
 #: Largest normalised section mismatch of a repeat [~rad]; the classifier's periodic tolerance.
@@ -272,7 +277,7 @@ class Attractor:
         """Turns per forcing period."""
         return self.turns / max(self.period, 1)
 
-    def mirror_of(self, other: "Attractor", tol: float = MATCH_TOL) -> bool:
+    def mirror_of(self, other: Attractor, tol: float = MATCH_TOL) -> bool:
         """Whether ``other`` is this attractor's image under theta -> -theta (same y)."""
         if other.period != self.period or other.turns != -self.turns:
             return False

@@ -35,17 +35,28 @@ from __future__ import annotations
 import functools
 import math
 import os
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import Any, Callable, Protocol
+from typing import Any, Protocol
 
 import numpy as np
 import pandas as pd
 
-from .attractors import MATCH_TOL, ROTATION_WINDOW, SETTLE_TOL, SETTLE_WINDOW, Attractor, cycle_distance, identify_attractors, repeat_mask, settling
-from .errors import ConfigError
+from .attractors import (
+    MATCH_TOL,
+    ROTATION_WINDOW,
+    SETTLE_TOL,
+    SETTLE_WINDOW,
+    Attractor,
+    cycle_distance,
+    identify_attractors,
+    repeat_mask,
+    settling,
+)
 from .classify import MAX_PERIOD
+from .errors import ConfigError
 from .kernels._layout import REC_THETA_ABSMAX, REC_THETADOT_SEC, REC_Y_ABSMAX, REC_Y_SEC
 from .params import ModelParams
 from .status import Status

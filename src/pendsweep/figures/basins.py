@@ -53,8 +53,13 @@ def plot_basin(rows: pd.DataFrame, summary: dict[str, Any], config: BasinConfig,
     """Basin map over (theta0, thetadot0) coloured by attractor, and the survival curves."""
     fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4.6), constrained_layout=True)
     table = summary["attractors"]
-    names = [f"{a['motion']}" + (f" {a['rotation_number']:+g} turn/T, cycle {a['period']}T" if a["motion"] == "rotating" else "")
-             + f" ({100 * a['fraction']:.1f}%)" for a in table]
+    def name(a: dict) -> str:
+        if a["motion"] != "rotating":
+            return a["motion"]
+        cycle = f"cycle {a['period']}T" if a["period"] else "steady, section not periodic"
+        return f"rotating {a['rotation_number']:+g} turn/T, {cycle}"
+
+    names = [f"{name(a)} ({100 * a['fraction']:.1f}%)" for a in table]
     palette = [c for i, c in enumerate(plt.get_cmap("tab10").colors) if i not in (3, 7)]  # red, grey: kept for unsettled
     colours = [palette[i % len(palette)] for i in range(len(table))] + ["tab:red"]
     ids = rows["attractor"].to_numpy()
