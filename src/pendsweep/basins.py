@@ -57,6 +57,7 @@ from .attractors import (
 )
 from .classify import MAX_PERIOD
 from .errors import ConfigError
+from .kernels import STATUS_DIVERGED, STATUS_OK, STATUS_UNSTABLE
 from .kernels._layout import REC_THETA_ABSMAX, REC_THETADOT_SEC, REC_Y_ABSMAX, REC_Y_SEC
 from .params import ModelParams
 from .status import Status
@@ -71,12 +72,19 @@ NOISY_SETTLE_TOL = 0.01
 ESCAPE_MIN_EVENTS = 20
 
 _SEC = slice(REC_Y_SEC, REC_THETADOT_SEC + 1)
+_STATUS_CODE = {Status.OK: STATUS_OK, Status.DIVERGED: STATUS_DIVERGED, Status.UNSTABLE: STATUS_UNSTABLE}
 
 
 class StroboscopicMap(Protocol):
-    def advance(self, states: np.ndarray, periods: int, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
+    """What :func:`settle_runs` integrates (see the module docstring)."""
 
-    def scales_for(self, ids: np.ndarray, records: np.ndarray) -> np.ndarray: ...
+    def advance(self, states: np.ndarray, periods: int, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(records (k, periods, 8), final states (k, d), status codes (k,))`` from phase 0."""
+        ...
+
+    def scales_for(self, ids: np.ndarray, records: np.ndarray) -> np.ndarray:
+        """Section divisors ``(k, 4)`` of runs ``ids`` from their records."""
+        ...
 
 
 def _pendulum_scales(records: np.ndarray, omega_e: np.ndarray, omega_p: np.ndarray) -> np.ndarray:
@@ -145,7 +153,7 @@ class BackendMap:
     def advance(self, states, periods, ids):
         def one(i):
             run = self._backend_for(ids[i]).run_point(self.params, states[i], 0, periods)
-            return run.records, run.state, 0 if run.status is Status.OK else (1 if run.status is Status.DIVERGED else 2)
+            return run.records, run.state, _STATUS_CODE[run.status]
 
         with ThreadPoolExecutor(max(1, self.workers)) as pool:
             out = list(pool.map(one, range(len(ids))))
@@ -653,7 +661,7 @@ def runs_frame(config: BasinConfig, point: int, starts: np.ndarray, runs: Settle
 def runs_from_frame(df: pd.DataFrame) -> SettledRuns:
     """Rebuild :class:`SettledRuns` from stored rows (for summaries of finished or resumed runs)."""
     k = len(df)
-    status = np.array([{"ok": 0, "diverged": 1, "unstable": 2}[s] for s in df["status"]], dtype=np.int64)
+    status = np.array([_STATUS_CODE[Status(s)] for s in df["status"]], dtype=np.int64)
     motion = df["motion"].to_numpy().astype(str)
     settled = ~np.isin(motion, ["unsettled", "n/a"])
     return SettledRuns(
