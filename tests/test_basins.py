@@ -333,3 +333,20 @@ def test_cli_map_with_boundaries(tmp_path):
     b = hopf_boundaries(MapConfig("alpha", (0.0, 45.0), "fe", (2.5, 2.5)))
     assert b["analytic"].iloc[0] == pytest.approx(16.456, abs=0.01)
     assert b["floquet"].iloc[0] == pytest.approx(16.097, abs=0.01)
+
+
+def test_dask_executor_gives_the_local_rows():
+    distributed = pytest.importorskip("distributed")
+    from pendsweep.executors import DaskExecutor
+
+    config = BasinConfig("alpha", (30.0, 40.0), {"fe": 2.5}, samples=24, max_periods=300)
+    local = run_basins(config, chunk_starts=8)
+    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
+                                       silence_logs=40)
+    try:
+        with distributed.Client(cluster) as client:
+            remote = run_basins(config, chunk_starts=8, executor=DaskExecutor(client))
+    finally:
+        cluster.close()
+    cols = [c for c in local.columns if c not in ("cycle", "scales")]
+    assert remote[cols].equals(local[cols])
