@@ -154,7 +154,8 @@ def basins_command(parameter, start, stop, step, points, **kw):
         if step is None and points is None:
             raise ConfigError("give --step or --points for the parameter range")
         values = tuple(value_range(start, stop, step, points))
-        model.pop(parameter, None)
+        if parameter in model:
+            raise ConfigError(f"{parameter} is the stepped PARAMETER; drop its fixed value {model[parameter]!r}")
     backend_options = _key_value(kw["backend_opts"], "--backend-option")
     if kw["dt"] is not None:
         backend_options["dt"] = kw["dt"]
@@ -260,6 +261,8 @@ def map_command(x, y, **kw):
     from ..maps import MapConfig, hopf_boundaries, parse_axis, run_map
 
     raw = _model(kw)
+    if x == y:
+        raise ConfigError(f"the two map axes must differ (both are {x!r})")
     axes = {}
     for name in (x, y):
         if name not in PARAM_SPECS:
