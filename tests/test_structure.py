@@ -14,6 +14,9 @@ import pytest
 
 SRC = Path(__file__).resolve().parents[1] / "src" / "pendsweep"
 KERNEL_FILES = sorted((SRC / "kernels").glob("*.py"))
+#: Benchmark peers: the scripts a user would write without pendsweep, independent by design
+#: (numpy/JAX cannot call numba functions; the naive script must not import the package).
+PEERS = ["bench/naive_sweep.py", "bench/throughput.py"]
 #: The longest a numba kernel function may be (issue 10: "no kernel function over about 80 lines").
 MAX_KERNEL_LINES = 80
 
@@ -24,13 +27,12 @@ def _python_files():
 
 def test_rk4_weighted_stage_sum_is_written_once():
     # "k1 + 2 k2 + 2 k3 + k4" in any spelling: a "+ 2.0 *" or "+ 2 *" followed by another of them.
-    pattern = re.compile(r"\+\s*2(\.0)?\s*\*\s*[\w\[\]{}.]+\s*\+\s*2(\.0)?\s*\*")
+    pattern = re.compile(r"\+\s*(2(\.0)?|two)\s*\*\s*[\w\[\]{}.]+\s*\+\s*(2(\.0)?|two)\s*\*")
     hits = [f"{p.relative_to(SRC)}:{i}" for p in _python_files() for i, line in enumerate(p.read_text().splitlines(), 1)
             if pattern.search(line)]  # fmt: skip
     files = sorted({h.split(":")[0] for h in hits})
-    # _tuple.py twice (the plain form and the compiled overload's template), and the benchmark's
-    # independent numpy/JAX peer, which by design shares no code with the kernels.
-    assert files == ["bench/throughput.py", "kernels/_tuple.py"], hits
+    # _tuple.py twice (the plain form and the compiled overload's template), and the peers.
+    assert files == sorted([*PEERS, "kernels/_tuple.py"]), hits
     assert sum(h.startswith("kernels/_tuple.py") for h in hits) == 2, hits
 
 
@@ -43,8 +45,7 @@ def test_each_right_hand_side_is_defined_once(rhs):
 def test_damping_law_is_written_once():
     law = re.compile(r"b1\s*\*\s*\w+\s*\+\s*b2\s*\*\s*\w+\s*\+\s*b3")
     hits = [str(p.relative_to(SRC)) for p in _python_files() if law.search(p.read_text())]
-    # The rhs module, and the independent array-module peer of the benchmark (numpy/JAX cannot call numba).
-    assert sorted(hits) == ["bench/throughput.py", "kernels/_rhs.py"]
+    assert sorted(hits) == sorted([*PEERS, "kernels/_rhs.py"])
 
 
 def test_parameter_order_is_never_written_by_hand():

@@ -10,6 +10,7 @@ chunks, and runs the chunks on all numba threads.
 from __future__ import annotations
 
 import threading
+from dataclasses import dataclass
 from typing import NamedTuple, Sequence
 
 import numba as nb
@@ -17,7 +18,9 @@ import numpy as np
 
 from .backends import steps_per_period
 from .errors import ConfigError
-from .kernels import N_RECORD_COLUMNS
+from .gpu import check_device, run_batch_cuda
+from .kernels import N_RECORD_COLUMNS, STATUS_OK
+from .kernels._layout import SECTION_COLUMNS
 from .kernels._batched import Lanes, batched_periods
 from .params import ModelParams
 
@@ -87,6 +90,8 @@ def run_batch(
     signum: str = "step",
     chunk: int = DEFAULT_CHUNK,
     threads: int | None = None,
+    device: str = "cpu",
+    precision: str = "float64",
 ) -> BatchRun:
     """Integrate independent points of the emulated system, vectorised across points.
 
@@ -106,7 +111,13 @@ def run_batch(
     chunk : int
         Points per lockstep chunk.
     threads : int, optional
-        numba threads for this call (default: all).
+        numba threads for this call (default: all; ignored on a GPU).
+    device : {"cpu", "cuda"}
+        Where to integrate: the CPU batched kernel, or one GPU thread per
+        point (:func:`pendsweep.gpu.run_batch_cuda`; raises ``ConfigError``
+        when no CUDA GPU is usable).
+    precision : {"float64", "float32"}
+        Arithmetic on the GPU (float32 only with ``device="cuda"``; see docs/gpu.md).
 
     Returns
     -------
@@ -115,49 +126,191 @@ def run_batch(
         1e-12 relative on periodic motion (tests check 1e-9).
     """
     n = len(params)
-    states = np.asarray(states, dtype=np.float64).reshape(n, 4)
     if signum not in ("step", "stage"):
         raise ConfigError(f"signum = {signum!r}; choose 'step' or 'stage'")
     for name, v, lo in (("transient_periods", transient_periods, 0), ("record_periods", record_periods, 1), ("chunk", chunk, 1)):
         if int(v) != v or v < lo:
             raise ConfigError(f"{name} = {v!r} must be an integer >= {lo}")
+    check_device(device, precision)
+    if device == "cuda" and n:
+        return run_batch_cuda(
+            np.stack([q.kernel_array() for q in params]), np.array([q.alpha for q in params]),
+            np.array([q.fe for q in params]), np.array([steps_per_period(q.fe, dt) for q in params], dtype=np.int64),
+            np.asarray(states, dtype=np.float64).reshape(n, 4), int(transient_periods), int(record_periods),
+            sgn_per_stage=signum == "stage", precision=precision,
+        )  # fmt: skip
+    schedule = LaneSchedule(
+        transient=np.full(n, int(transient_periods), dtype=np.int64),
+        total=np.full(n, int(transient_periods) + int(record_periods), dtype=np.int64),
+    )
+    run, _ = run_lanes(params, states, schedule, int(record_periods), dt=dt, signum=signum, chunk=chunk, threads=threads)
+    return run
+
+
+@dataclass
+class LaneSchedule:
+    """What each lane of :func:`run_lanes` integrates (arrays of length n).
+
+    Attributes
+    ----------
+    transient, total : int64[n]
+        Periods before the lane's first record row, and in all.
+    partner : int64[n] or None
+        -1, or the lane this one is a twin of (see :mod:`pendsweep.kernels._batched`).
+    scales : float64[n, 4] or None
+        A twin's section normalisation (``pendsweep.classify.section_scales``).
+    d0 : float
+        A twin's separation after renormalisation [normalised].
+    rest : float
+        A twin stops once its partner's period swing falls below this [rad].
+    """
+
+    transient: np.ndarray
+    total: np.ndarray
+    partner: np.ndarray | None = None
+    scales: np.ndarray | None = None
+    d0: float = 1e-8
+    rest: float = 0.0
+
+
+def run_lanes(
+    params: Sequence[ModelParams],
+    states: np.ndarray,
+    schedule: LaneSchedule,
+    record_periods: int,
+    stretch_periods: int = 0,
+    *,
+    dt: float = 1e-3,
+    signum: str = "step",
+    chunk: int = DEFAULT_CHUNK,
+    threads: int | None = None,
+) -> tuple[BatchRun, np.ndarray]:
+    """Integrate lanes with their own schedules (and twins) in one launch of the batched kernel.
+
+    Returns the :class:`BatchRun` (records ``(n, record_periods, 8)``) and the
+    twins' log-stretch samples ``(n, stretch_periods)``, NaN where none, in
+    the order of ``params``. A twin and its partner are kept in one chunk.
+    """
+    n = len(params)
+    states = np.asarray(states, dtype=np.float64).reshape(n, 4)
     records = np.full((n, int(record_periods), N_RECORD_COLUMNS), np.nan)
+    stretch = np.full((n, int(stretch_periods)), np.nan)
     status = np.zeros(n, dtype=np.int64)
     done = np.zeros(n, dtype=np.int64)
     if n == 0:
-        return BatchRun(records, states.copy(), status, done)
+        return BatchRun(records, states.copy(), status, done), stretch
     steps = np.array([steps_per_period(q.fe, dt) for q in params], dtype=np.int64)
-    order = np.argsort(steps, kind="stable")
+    order = np.argsort(steps, kind="stable")  # a twin follows its partner: equal steps keep their order
+    position = np.empty(n, dtype=np.int64)
+    position[order] = np.arange(n)
+    partner = np.full(n, -1, dtype=np.int64) if schedule.partner is None else np.asarray(schedule.partner)
+    sorted_partner = np.where(partner[order] >= 0, position[np.maximum(partner[order], 0)], -1)
+    scales = np.ones((n, 4)) if schedule.scales is None else np.asarray(schedule.scales, dtype=np.float64)
+    lanes = Lanes(
+        transient=np.ascontiguousarray(schedule.transient[order], dtype=np.int64),
+        total=np.ascontiguousarray(schedule.total[order], dtype=np.int64),
+        partner=np.ascontiguousarray(sorted_partner, dtype=np.int64),
+        scales=np.ascontiguousarray(scales[order].T),
+        d0=float(schedule.d0),
+        rest=float(schedule.rest),
+    )
     p = np.ascontiguousarray(np.stack([params[i].kernel_array() for i in order], axis=1))
     alpha = np.array([params[i].alpha for i in order])
     fe = np.array([params[i].fe for i in order])
     sorted_steps = np.ascontiguousarray(steps[order])
     soa = np.ascontiguousarray(states[order].T)
     out = np.full_like(records, np.nan)
+    out_stretch = np.full_like(stretch, np.nan)
     st = np.zeros(n, dtype=np.int64)
     dn = np.zeros(n, dtype=np.int64)
-    bounds = chunk_bounds(sorted_steps, int(chunk))
-    lanes = Lanes(
-        transient=np.full(n, int(transient_periods), dtype=np.int64),
-        total=np.full(n, int(transient_periods) + int(record_periods), dtype=np.int64),
-        partner=np.full(n, -1, dtype=np.int64),
-        scales=np.ones((4, n)),
-        d0=1.0,
-        rest=0.0,
-    )
+    bounds = keep_twins_together(chunk_bounds(sorted_steps, int(chunk)), sorted_partner)
     with _LAUNCH:
         previous = nb.get_num_threads()
         # No more threads than chunks: an idle thread only waits at the barrier.
         nb.set_num_threads(max(1, min(int(threads or previous), nb.config.NUMBA_NUM_THREADS, len(bounds) - 1)))
+        # Chunk costs differ (lanes finish or diverge early, steps differ): threads take
+        # chunks one at a time instead of a fixed share each.
+        previous_chunksize = nb.set_parallel_chunksize(1)
         try:
             batched_periods(
-                soa, p, alpha, fe, sorted_steps, lanes, signum == "stage", bounds, out, st, dn, np.empty((n, 0))
+                soa, p, alpha, fe, sorted_steps, lanes, signum == "stage", bounds, out, st, dn, out_stretch
             )
         finally:
             nb.set_num_threads(previous)
+            nb.set_parallel_chunksize(previous_chunksize)
     records[order] = out
+    stretch[order] = out_stretch
     final = np.empty_like(states)
     final[order] = soa.T
     status[order] = st
     done[order] = dn
-    return BatchRun(records, final, status, done)
+    return BatchRun(records, final, status, done), stretch
+
+
+def keep_twins_together(bounds: np.ndarray, partner: np.ndarray) -> np.ndarray:
+    """Chunk boundaries moved so that no cut falls between a twin and its partner just before it."""
+    moved = [int(b) + 1 if 0 < b < len(partner) and partner[b] == b - 1 else int(b) for b in bounds]
+    return np.array(sorted(set(moved)), dtype=np.int64)
+
+
+def batched_evidence(
+    params: Sequence[ModelParams],
+    finals: np.ndarray,
+    firsts: np.ndarray,
+    scales: np.ndarray,
+    *,
+    extend_periods: int,
+    lyapunov_periods: int,
+    d0: float,
+    rest: float,
+    dt: float = 1e-3,
+    signum: str = "step",
+    threads: int | None = None,
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The classifier's evidence for many points in one launch (see :mod:`pendsweep.classify`).
+
+    Per point three lanes run in lockstep: the record extended by
+    ``extend_periods`` from its final state, and the two-trajectory Lyapunov
+    pair from the first recorded section state (the twin displaced by
+    ``d0 * scales[2]`` in theta), renormalised inside the kernel every period
+    for ``lyapunov_periods``.
+
+    Parameters
+    ----------
+    params : sequence of ModelParams, length m
+    finals, firsts : float64[m, 4]
+        Final states and first recorded section states of the points.
+    scales : float64[m, 4]
+        Section normalisation per point.
+
+    Returns
+    -------
+    list of (sections float64[extend_periods or 0, 4], log_stretch float64[<= lyapunov_periods])
+    """
+    m = len(params)
+    firsts = np.asarray(firsts, dtype=np.float64).reshape(m, 4)
+    twins = firsts.copy()
+    twins[:, 2] += d0 * np.asarray(scales)[:, 2]
+    states = np.stack([np.asarray(finals, dtype=np.float64).reshape(m, 4), firsts, twins], axis=1).reshape(3 * m, 4)
+    index = np.arange(3 * m)
+    schedule = LaneSchedule(
+        transient=np.zeros(3 * m, dtype=np.int64),
+        total=np.where(index % 3 == 0, int(extend_periods), int(lyapunov_periods)).astype(np.int64),
+        partner=np.where(index % 3 == 2, index - 1, -1).astype(np.int64),
+        scales=np.repeat(np.asarray(scales, dtype=np.float64).reshape(m, 4), 3, axis=0),
+        d0=d0,
+        rest=rest,
+    )
+    lane_params = [q for q in params for _ in range(3)]
+    run, stretch = run_lanes(
+        lane_params, states, schedule, int(extend_periods), int(lyapunov_periods),
+        dt=dt, signum=signum, threads=threads,
+    )  # fmt: skip
+    evidence = []
+    for j in range(m):
+        ok = run.status[3 * j] == STATUS_OK
+        sections = run.records[3 * j][:, SECTION_COLUMNS] if ok else np.empty((0, 4))
+        samples = stretch[3 * j + 2]
+        stop = np.flatnonzero(np.isnan(samples))
+        evidence.append((sections, samples[: stop[0]] if stop.size else samples))
+    return evidence

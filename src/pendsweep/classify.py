@@ -55,11 +55,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, Sequence
 
 import numpy as np
 
 from .backends import PointRun
+from .kernels._batched import twin_separation
 from .kernels._layout import REC_ROTATIONS, REC_THETA_ABSMAX, REC_THETADOT_SEC, REC_Y_ABSMAX, REC_Y_SEC
 from .params import ENCODER_RESOLUTION, ModelParams
 from .status import Status
@@ -195,9 +196,9 @@ def two_trajectory_log_stretch(
     out = []
     for _ in range(periods):
         (reference, swing), (copy, _) = advance(reference), advance(copy)
-        full = copy - reference
-        full[:4] = section_difference(copy, reference, scales) * scales
-        distance = float(np.linalg.norm(full[:4] / scales))
+        full = copy - reference  # entries past the section follow along
+        section, distance = twin_separation(tuple(reference[:4]), tuple(copy[:4]), scales)
+        full[:4] = section
         if swing < ENCODER_RESOLUTION or not (math.isfinite(distance) and distance > 0):
             break
         out.append(math.log(distance / d0))
@@ -227,6 +228,37 @@ def closed_curve(sections: np.ndarray, scales: np.ndarray) -> bool:
     return False
 
 
+def decided_by_record(
+    records: np.ndarray, scales: np.ndarray, status: Status = Status.OK, rest: float = ENCODER_RESOLUTION
+) -> Motion | None:
+    """The label when the record alone decides it, else None (the point needs :class:`Evidence`)."""
+    if status is not Status.OK or not np.isfinite(records).all():
+        return Motion("n/a")
+    if records[:, REC_THETA_ABSMAX].max() < rest:
+        return Motion("semi-trivial")
+    n = section_period(records[:, _SEC], scales)
+    if n:
+        return Motion("rotating" if np.any(records[:, REC_ROTATIONS] != 0) else f"periodic-{n}", n)
+    if records[-1, REC_THETA_ABSMAX] < rest:
+        return Motion("transient")  # still coming to rest
+    return None
+
+
+def classify_with_evidence(records: np.ndarray, scales: np.ndarray, ev: Evidence) -> Motion:
+    """The label of an undecided record (:func:`decided_by_record` gave None) from its evidence."""
+    lle, err = lyapunov_estimate(ev.log_stretch)
+    if lle > LYAP_SIGMAS * err and lle > LYAP_FLOOR:
+        return Motion("chaotic", 0, lle, err)
+    if np.any(records[:, REC_ROTATIONS] != 0):
+        return Motion("rotating", 0, lle, err)
+    tail = ev.sections[-4 * MAX_PERIOD :]
+    if section_period(tail, scales) or (lle < -LYAP_SIGMAS * err and lle < -LYAP_FLOOR):
+        return Motion("transient", 0, lle, err)
+    if closed_curve(ev.sections, scales):
+        return Motion("quasi-periodic", 0, lle, err)
+    return Motion("transient", 0, lle, err)
+
+
 def classify_records(
     records: np.ndarray,
     scales: np.ndarray,
@@ -238,28 +270,12 @@ def classify_records(
     ``evidence`` is called only when the record itself is not decisive
     (not at rest, not periodic); without it such points are ``transient``.
     """
-    if status is not Status.OK or not np.isfinite(records).all():
-        return Motion("n/a")
-    if records[:, REC_THETA_ABSMAX].max() < ENCODER_RESOLUTION:
-        return Motion("semi-trivial")
-    rotating = bool(np.any(records[:, REC_ROTATIONS] != 0))
-    n = section_period(records[:, _SEC], scales)
-    if n:
-        return Motion("rotating" if rotating else f"periodic-{n}", n)
-    if evidence is None or records[-1, REC_THETA_ABSMAX] < ENCODER_RESOLUTION:
-        return Motion("transient")  # undecidable here, or still coming to rest
-    ev = evidence()
-    lle, err = lyapunov_estimate(ev.log_stretch)
-    if lle > LYAP_SIGMAS * err and lle > LYAP_FLOOR:
-        return Motion("chaotic", 0, lle, err)
-    if rotating:
-        return Motion("rotating", 0, lle, err)
-    tail = ev.sections[-4 * MAX_PERIOD :]
-    if section_period(tail, scales) or (lle < -LYAP_SIGMAS * err and lle < -LYAP_FLOOR):
-        return Motion("transient", 0, lle, err)
-    if closed_curve(ev.sections, scales):
-        return Motion("quasi-periodic", 0, lle, err)
-    return Motion("transient", 0, lle, err)
+    motion = decided_by_record(records, scales, status)
+    if motion is not None:
+        return motion
+    if evidence is None:
+        return Motion("transient")  # undecidable here
+    return classify_with_evidence(records, scales, evidence())
 
 
 def backend_evidence(backend, params: ModelParams, run: PointRun, scales: np.ndarray) -> Evidence:
@@ -278,7 +294,36 @@ def backend_evidence(backend, params: ModelParams, run: PointRun, scales: np.nda
 
 def classify_run(backend, params: ModelParams, run: PointRun) -> Motion:
     """Classify a finished sweep point, re-simulating with its backend when needed."""
-    scales = section_scales(run.records, params) if run.status is Status.OK else np.ones(4)
-    return classify_records(
-        run.records, scales, run.status, lambda: backend_evidence(backend, params, run, scales)
-    )
+    return classify_runs(backend, [params], [run])[0]
+
+
+def classify_runs(backend, params: Sequence[ModelParams], runs: Sequence[PointRun]) -> list[Motion]:
+    """Classify finished points; the evidence of all undecided ones is computed together.
+
+    A backend with a batched kernel integrates every undecided point's
+    extension and Lyapunov twin in one launch (``evidence_many``); others
+    re-simulate point by point through :func:`backend_evidence`.
+    """
+    scales = [section_scales(r.records, q) if r.status is Status.OK else np.ones(4) for q, r in zip(params, runs)]
+    motions = [decided_by_record(r.records, s, r.status) for r, s in zip(runs, scales)]
+    undecided = [j for j, m in enumerate(motions) if m is None]
+    if not undecided:
+        return motions
+    evidence_many = getattr(backend, "evidence_many", None)
+    if evidence_many is not None:
+        found = evidence_many(
+            [params[j] for j in undecided],
+            np.array([runs[j].state[:4] for j in undecided]),
+            np.array([runs[j].records[0, _SEC] for j in undecided]),
+            np.array([scales[j] for j in undecided]),
+            extend_periods=EXTEND_PERIODS,
+            lyapunov_periods=max(runs[undecided[0]].records.shape[0], LYAP_MIN_PERIODS),
+            d0=LYAP_D0,
+            rest=ENCODER_RESOLUTION,
+        )
+        evidence = [Evidence(sections, stretch) for sections, stretch in found]
+    else:
+        evidence = [backend_evidence(backend, params[j], runs[j], scales[j]) for j in undecided]
+    for j, ev in zip(undecided, evidence):
+        motions[j] = classify_with_evidence(runs[j].records, scales[j], ev)
+    return motions

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 import matplotlib
 
@@ -85,14 +85,20 @@ def draw_bifurcation(
     ax.legend(loc="upper left", fontsize=8, markerscale=2)
 
 
-def plot_files(paths: Sequence[Path], output: Path, observable: str = "theta_peak", title: str | None = None) -> Path:
-    """Draw the bifurcation diagram of one or more result files into ``output`` (PNG/PDF/SVG)."""
+def plot_files(paths: Sequence[Path], output: Path, observable: str = "theta_peak", title: str | None = None,
+               overlays: Sequence[Callable[[plt.Axes], None]] = ()) -> Path:
+    """Draw the bifurcation diagram of one or more result files into ``output`` (PNG/PDF/SVG).
+
+    ``overlays`` draw more on the same axes afterwards (e.g. continuation branches).
+    """
     output = Path(output)
     if output.suffix.lower() not in {".png", ".pdf", ".svg"}:
         raise ConfigError(f"plot file {str(output)!r} must end in .png, .pdf or .svg")
     results = [read_results(Path(p)) for p in paths]
     fig, ax = plt.subplots(figsize=(7.5, 4.5), constrained_layout=True)
     draw_bifurcation(ax, results, observable)
+    for draw in overlays:
+        draw(ax)
     if title is None:
         cfg = results[0][1]["config"]
         fixed = {k: v for k, v in cfg["model"].items() if k in ("alpha", "fe", "M", "C", "K") and k != cfg["parameter"]}

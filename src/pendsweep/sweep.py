@@ -38,10 +38,11 @@ import numpy as np
 import pandas as pd
 
 from .backends import BACKENDS, PointRun, make_backend
-from .classify import classify_run
+from .classify import classify_run, classify_runs
 from .errors import ConfigError
 from .executors import Executor, LocalExecutor
 from .kernels import RECORD_COLUMNS
+from .kernels._layout import RECORD_INDEX
 from .params import ENCODER_RESOLUTION, PARAM_SPECS, ModelParams, check_value
 from .results import ResultStore, run_metadata
 from .status import Status
@@ -245,19 +246,23 @@ class PointResult:
 
 
 def result_rows(config: SweepConfig, r: PointResult) -> pd.DataFrame:
-    """Long-form rows of one unit: one row per recorded period."""
-    n = r.run.records.shape[0]
-    df = pd.DataFrame(r.run.records, columns=list(RECORD_COLUMNS))
-    df["rotations"] = df["rotations"].fillna(0).astype(np.int64)
-    df.insert(0, config.parameter, r.value)
-    df.insert(1, "direction", r.direction)
-    df.insert(2, "point", np.int64(r.point))
-    df.insert(3, "start", np.int64(r.start))
-    df.insert(4, "period", np.arange(n, dtype=np.int64))
-    df["kicked"] = r.kicked
-    df["status"] = r.run.status.value
-    df["motion"] = r.motion
-    return df
+    """Long-form rows of one unit: one row per recorded period, built from whole columns."""
+    records = r.run.records
+    n = records.shape[0]
+    columns: dict[str, Any] = {
+        config.parameter: np.full(n, r.value),
+        "direction": np.full(n, r.direction, dtype=object),
+        "point": np.full(n, r.point, dtype=np.int64),
+        "start": np.full(n, r.start, dtype=np.int64),
+        "period": np.arange(n, dtype=np.int64),
+    }
+    for j, name in enumerate(RECORD_COLUMNS):
+        columns[name] = records[:, j]
+    columns["rotations"] = np.nan_to_num(records[:, RECORD_INDEX["rotations"]]).astype(np.int64)
+    columns["kicked"] = np.full(n, r.kicked)
+    columns["status"] = np.full(n, r.run.status.value, dtype=object)
+    columns["motion"] = np.full(n, r.motion, dtype=object)
+    return pd.DataFrame(columns)
 
 
 def _continue_branch(config, backend, direction, indices, resume) -> Iterator[PointResult]:
@@ -310,9 +315,10 @@ def _batched_units(config, backend, units, threads) -> list[PointResult]:
         ic = initials[i][s] if config.mode == "multistart" else config.initial
         states.append(backend.initial_state(params[-1], *ic))
     runs = backend.run_points(params, np.array(states), config.transient_periods, config.record_periods, threads)
+    motions = classify_runs(backend, params, runs)
     return [
-        PointResult("none", i, s, config.values[i], run, False, classify_run(backend, q, run).label)
-        for (i, s), q, run in zip(units, params, runs)
+        PointResult("none", i, s, config.values[i], run, False, motion.label)
+        for (i, s), run, motion in zip(units, runs, motions)
     ]
 
 
@@ -329,6 +335,7 @@ def _independent_tasks(config, backend, resume, n_jobs, task_points) -> tuple[li
             (i, s) for i in range(len(config.values)) for s in range(n_starts) if unit_key("none", i, s) not in resume
         ]
         threads = None if n_jobs < 1 else n_jobs
+        task_points = max(task_points, getattr(backend, "min_batch_points", 1))
         chunks = [units[k : k + task_points] for k in range(0, len(units), task_points)]
         return [functools.partial(_batched_units, config, backend, c, threads) for c in chunks], 1
     tasks = []

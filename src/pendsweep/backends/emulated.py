@@ -10,6 +10,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import ConfigError
+from ..gpu import GPU_BATCH_POINTS, check_device
 from ..kernels import N_RECORD_COLUMNS, emulated_periods, emulated_trace
 from ..params import ModelParams
 from ..status import Status
@@ -30,17 +31,29 @@ class EmulatedBackend:
     signum : {"step", "stage"}
         Evaluate sgn(thetadot) in the damping once per step and hold it over
         the RK4 stages (``"step"``, the paper's choice) or at every stage.
+    device : {"cpu", "cuda"}
+        Where :meth:`run_points` (fresh and multistart sweeps, Hopf simulate
+        scans) integrates: the CPU batched kernel, or one CUDA GPU thread per
+        point (``pip install 'pendsweep[cuda]'``; see docs/gpu.md). Single
+        points (:meth:`run_point`, continue-mode branches, traces) always run
+        on the CPU.
+    precision : {"float64", "float32"}
+        Arithmetic of ``device="cuda"``; float32 is opt-in (its error is
+        measured in docs/gpu.md), the CPU kernels are float64 only.
     """
 
     name: ClassVar[str] = "emulated"
     dt: float = 1e-3
     signum: str = "step"
+    device: str = "cpu"
+    precision: str = "float64"
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.dt) and self.dt > 0):
             raise ConfigError(f"dt = {self.dt!r} s must be a positive finite step")
         if self.signum not in ("step", "stage"):
             raise ConfigError(f"signum = {self.signum!r}; choose 'step' or 'stage'")
+        check_device(self.device, self.precision)
 
     def validate(self, params: ModelParams) -> None:
         if 1.0 / params.fe < self.dt:
@@ -50,6 +63,11 @@ class EmulatedBackend:
 
     def options(self) -> dict[str, Any]:
         return asdict(self)
+
+    @property
+    def min_batch_points(self) -> int:
+        """Fewest points worth one :meth:`run_points` call: a GPU needs ~1e5 threads to be busy."""
+        return GPU_BATCH_POINTS if self.device == "cuda" else 1
 
     def steps_per_period(self, params: ModelParams) -> int:
         return steps_per_period(params.fe, self.dt)
@@ -84,12 +102,23 @@ class EmulatedBackend:
         from ..batch import run_batch
 
         batch = run_batch(
-            params, states, transient_periods, record_periods, dt=self.dt, signum=self.signum, threads=threads
+            params, states, transient_periods, record_periods, dt=self.dt, signum=self.signum, threads=threads,
+            device=self.device, precision=self.precision,
         )
         return [
             PointRun(batch.records[i], batch.states[i], Status.from_code(batch.status[i]), int(batch.periods_done[i]))
             for i in range(len(params))
         ]
+
+    def evidence_many(self, params, finals, firsts, scales, **schedule) -> list[tuple[np.ndarray, np.ndarray]]:
+        """The motion classifier's evidence for many points in one batched launch.
+
+        See :func:`pendsweep.batch.batched_evidence`; ``schedule`` holds its
+        keyword arguments (periods, twin separation, rest threshold).
+        """
+        from ..batch import batched_evidence
+
+        return batched_evidence(params, finals, firsts, scales, dt=self.dt, signum=self.signum, **schedule)
 
     def trace(self, params, state, periods, stride=1) -> pd.DataFrame:
         n = self.steps_per_period(params)

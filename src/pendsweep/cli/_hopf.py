@@ -14,7 +14,8 @@ from ..hopf import METHODS, HopfConfig, run_hopf
 from ..sweep import value_range
 from ._app import FINITE, main
 from ._executor import apply_options, executor_options
-from ._sweep import _finite, _key_value
+from ..gpu import with_device
+from ._sweep import DEVICE_OPTION, _finite, _key_value
 
 
 def parse_values(text: str, what: str) -> tuple[float, ...]:
@@ -43,6 +44,7 @@ def parse_values(text: str, what: str) -> tuple[float, ...]:
               help="Backend of the simulate method.")
 @click.option("-B", "--backend-option", "backend_options", multiple=True, metavar="KEY=VALUE",
               help="Backend option (repeatable), e.g. dt=0.001 [s].")
+@DEVICE_OPTION
 @click.option("--set", "model", multiple=True, metavar="NAME=VALUE",
               help="Model parameter override in SI units (repeatable), e.g. --set b1=0 --set C=20.")
 @click.option("--kick", type=FINITE, default=0.01, show_default=True, help="Simulate: pendulum kick [rad].")
@@ -57,7 +59,7 @@ def parse_values(text: str, what: str) -> tuple[float, ...]:
 @click.option("--overwrite", is_flag=True, help="Discard earlier results at --output instead of resuming.")
 @click.option("--progress/--no-progress", default=None, help="Progress bar on stderr (default: when stderr is a terminal).")
 @apply_options(executor_options())
-def hopf(what, masses, methods, backend, backend_options, model, kick, periods, tol, alpha_max,
+def hopf(what, masses, methods, backend, backend_options, device, model, kick, periods, tol, alpha_max,
          output, jobs, overwrite, progress, executor, scheduler):
     """Hopf boundary alpha_H [N] of the semi-trivial solution (Fig. 10).
 
@@ -66,13 +68,14 @@ def hopf(what, masses, methods, backend, backend_options, model, kick, periods, 
     final bisection bracket, kick [rad], runs) and prints the table.
     Rerunning the same command resumes an interrupted scan.
     """
+    options = _key_value(backend_options, "--backend-option")
     config = HopfConfig(
         omega_hat=parse_values(what, "--what"),
         masses=parse_values(masses, "--M"),
         methods=tuple(m.strip() for m in methods.split(",") if m.strip()),
         model={k: _finite(k, v) for k, v in _key_value(model, "--set").items()},
         backend=backend,
-        backend_options=_key_value(backend_options, "--backend-option"),
+        backend_options=with_device(backend, options, device or options.get("device")),
         kick=kick, periods=periods, tol=tol, alpha_max=alpha_max,
     )
     progress = sys.stderr.isatty() if progress is None else progress

@@ -14,7 +14,15 @@ from ..backends import BACKENDS
 from ..errors import ConfigError, ParameterError
 from ..params import PARAM_SPECS, ModelParams
 from ..sweep import DIRECTIONS, MODES, SweepConfig, run_sweep, value_range
+from ..gpu import DEVICES, with_device
 from ._app import FINITE, main
+
+#: ``--device`` of the commands that run independent emulated points in batches.
+DEVICE_OPTION = click.option(
+    "--device", type=click.Choice(DEVICES), default=None,
+    help="Where batched emulated points integrate (fresh/multistart modes, Hopf simulate): cpu (default) or "
+    "cuda, one NVIDIA GPU thread per point (pip install 'pendsweep[cuda]'; -B precision=float32 opts into single precision).",
+)
 from ._executor import apply_options, executor_options
 
 
@@ -63,6 +71,7 @@ def sweep_options(default_step: float, unit: str):
             click.option("--direction", type=click.Choice(DIRECTIONS), default="up", show_default=True, help="Traversal of continue branches; both exposes hysteresis."),
             click.option("--backend", type=click.Choice(sorted(BACKENDS)), default="emulated", show_default=True, help="Simulation backend."),
             click.option("-B", "--backend-option", "backend_opts", multiple=True, metavar="KEY=VALUE", help="Backend option, e.g. -B signum=stage."),
+            DEVICE_OPTION,
             click.option("--dt", type=FINITE, default=None, help="Integration / controller step [s] (default 0.001)."),
             click.option("--transient-periods", type=int, default=100, show_default=True, help="Forcing periods discarded at each point."),
             click.option("--record-periods", type=int, default=20, show_default=True, help="Forcing periods recorded at each point."),
@@ -105,6 +114,7 @@ def build_config(parameter: str, default_step: float, kw: dict[str, Any]) -> Swe
     backend_options = _key_value(kw["backend_opts"], "--backend-option")
     if kw["dt"] is not None:
         backend_options["dt"] = kw["dt"]
+    backend_options = with_device(kw["backend"], backend_options, kw["device"] or backend_options.get("device"))
     return SweepConfig(
         parameter=parameter,
         values=tuple(values),
@@ -250,11 +260,13 @@ def plot_command(results, output, observable, title):
     """Draw a Fig. 11-style bifurcation diagram of one or more result files.
 
     Overlaying up, down and multistart files shows hysteresis and coexisting attractors.
+    Continuation results (.json from `pendsweep continue`) are drawn on top as branches:
+    solid stable, dashed unstable, markers at bifurcations.
     """
-    from ..plotting import plot_files
+    from ..continuation.overlay import plot_any
 
     output = output or Path(results[0]).with_suffix(".png")
-    click.echo(f"plot -> {plot_files(list(results), output, observable, title)}")
+    click.echo(f"plot -> {plot_any(list(results), output, observable, title)}")
 
 
 @main.command("figures")

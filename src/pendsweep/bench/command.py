@@ -1,0 +1,56 @@
+"""What a user waits for: whole commands, start-up included, against a plain script.
+
+Each command runs in its own process, twice; the second run is timed, so
+both sides use their warm numba caches (the first run compiles). The peer
+is :mod:`pendsweep.bench.naive_sweep`, run as a plain file. Ratios are
+from one run on one machine, side by side.
+"""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from . import benchmark
+
+NAIVE = Path(__file__).with_name("naive_sweep.py")
+
+
+def wall_time(argv: list[str], cwd: Path, repeat: int = 2) -> float:
+    """Wall time [s] of the last of ``repeat`` runs of ``argv`` (earlier runs warm the caches)."""
+    elapsed = 0.0
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        subprocess.run(argv, cwd=cwd, check=True, capture_output=True)
+        elapsed = time.perf_counter() - t0
+    return elapsed
+
+
+@benchmark("command")
+def bench_command(quick: bool) -> dict:
+    """``pendsweep --help``, the canonical sweep and the dense fresh sweep against the naive script."""
+    pendsweep = [sys.executable, "-m", "pendsweep.cli"]
+    naive = [sys.executable, str(NAIVE)]
+    dense_step = "0.5" if quick else "0.05"
+    work = Path(tempfile.mkdtemp(prefix="pendsweep-bench-"))
+    try:
+        out = {
+            "help_seconds": wall_time([*pendsweep, "--help"], work),
+            "canonical_seconds": wall_time([*pendsweep, "alpha", "--from", "0", "--to", "45", "-o", "c.parquet", "--overwrite"], work),
+            "canonical_naive_script_seconds": wall_time([*naive, "continue", "0", "45", "0.5"], work),
+            "dense_fresh_points": 901 if not quick else 91,
+            "dense_fresh_seconds": wall_time(
+                [*pendsweep, "alpha", "--from", "0", "--to", "45", "--step", dense_step, "--mode", "fresh",
+                 "-o", "d.parquet", "--overwrite"], work),  # fmt: skip
+            "dense_fresh_naive_script_seconds": wall_time([*naive, "fresh", "0", "45", dense_step], work),
+        }
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    out["canonical_over_naive"] = out["canonical_seconds"] / out["canonical_naive_script_seconds"]
+    out["dense_naive_over_pendsweep"] = out["dense_fresh_naive_script_seconds"] / out["dense_fresh_seconds"]
+    out["targets"] = {"help_seconds_max": 0.3, "canonical_over_naive_max": 1.5, "dense_naive_over_pendsweep_min": 10.0}
+    return out

@@ -1,0 +1,289 @@
+"""``pendsweep continue``: configuration, start orbits, the run and its JSON document.
+
+The JSON document (issue 15)::
+
+    {"parameter": "alpha", "unit": "N",
+     "bifurcations": [{"type": "period-doubling"|"fold"|"neimark-sacker"|"branch-point", "value": v, "branch": i}],
+     "branches": [{"period": k, "points": [{"value": v, "section": [y, ydot, theta, thetadot],
+                                            "multipliers": [[re, im], ...], "max_multiplier": m,
+                                            "stable": bool}]}],
+     "branch_ends": [{"branch": i, "origin": ..., "ends": [first end, last end]}],
+     "kind": "continuation", "config": {...}, "config_hash": ..., "package_version": ..., "created": ...}
+
+``section`` is the state at forcing phase 0 [m, m/s, rad, rad/s];
+``multipliers`` are the Floquet multipliers of ``P^k`` (complex, as
+``[re, im]``); a point is stable when all have modulus below 1. Points are
+in arclength order; located bifurcation points are included in their
+branch. ``branch-point`` (a multiplier +1 without a fold, such as the
+symmetry-breaking pitchfork of the swing near 54 N) extends the issue's three
+types. ``config`` holds everything needed to recompute the document.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import ConfigError
+from ..params import PARAM_SPECS, ModelParams, check_value
+from ..results import check_writable, read_results, run_metadata
+from .core import Continuation, Result, Settings
+from .shooting import PendulumShooting, semi_trivial_section
+
+#: Parameters that can be continued (derived M1/C1 are continued as M/C).
+CONTINUABLE = tuple(name for name in PARAM_SPECS if name not in ("M1", "C1", "M2", "C2"))
+
+
+@dataclass(frozen=True)
+class ContinuationConfig:
+    """A continuation run; stored in full with its result.
+
+    Attributes
+    ----------
+    parameter : str
+        Continued model parameter (:data:`CONTINUABLE`).
+    start, stop : float
+        The parameter interval [parameter unit]; the run starts at ``start``
+        unless ``start_value`` is given.
+    model : dict
+        Overrides of :class:`~pendsweep.params.ModelParams` (SI).
+    start_section : tuple of 4 floats or None
+        A point of a known orbit at forcing phase 0 ``(y, ydot, theta,
+        thetadot)``; ``None`` starts from the semi-trivial solution.
+    start_value : float or None
+        Parameter value of ``start_section`` (default ``start``).
+    period : int
+        Period of the start orbit in forcing periods.
+    eps : float
+        ``sgn(w) ~ tanh(w / eps)`` in the pendulum damping [rad/s]; 0 holds
+        the sign per step (non-smooth with b1 > 0, see docs/continuation.md).
+    dt : float
+        Requested RK4 step [s]; a whole number of steps per forcing period.
+    ds, ds_max : float
+        First and largest arclength step (scaled units).
+    max_points : int
+        Points per direction and branch.
+    max_period : int
+        Largest period reached by branch switching at period doublings.
+    newton_tol : float
+        Newton tolerance on the scaled max-norm of the update
+        (state in units of ``l``, ``l w_e``, 1 rad, ``w_e``).
+    """
+
+    parameter: str
+    start: float
+    stop: float
+    model: dict[str, float] = field(default_factory=dict)
+    start_section: tuple[float, float, float, float] | None = None
+    start_value: float | None = None
+    period: int = 1
+    eps: float = 1e-3
+    dt: float = 1e-3
+    ds: float = 0.02
+    ds_max: float = 0.05
+    max_points: int = 400
+    max_period: int = 4
+    newton_tol: float = 1e-10
+
+    def __post_init__(self) -> None:
+        if self.parameter not in CONTINUABLE:
+            raise ConfigError(f"cannot continue in {self.parameter!r}; choose from {', '.join(CONTINUABLE)}")
+        for v in (self.start, self.stop):
+            check_value(self.parameter, v)
+        if self.start == self.stop:
+            raise ConfigError(f"--from and --to are both {self.start:g}: give an interval")
+        ModelParams.from_mapping(self.model)
+        if self.start_value is not None:
+            lo, hi = sorted((self.start, self.stop))
+            if not lo <= self.start_value <= hi:
+                raise ConfigError(
+                    f"start orbit at {self.parameter} = {self.start_value:g} lies outside [{lo:g}, {hi:g}]"
+                )
+        if self.start_section is not None:
+            object.__setattr__(self, "start_section", tuple(float(v) for v in self.start_section))
+            if len(self.start_section) != 4 or not all(math.isfinite(v) for v in self.start_section):
+                raise ConfigError(f"start section {self.start_section!r} must be 4 finite numbers (y, ydot, theta, thetadot)")
+        checks = (
+            ("period", self.period >= 1 and int(self.period) == self.period, "an integer >= 1"),
+            ("eps", math.isfinite(self.eps) and self.eps >= 0, "a finite number >= 0 [rad/s]"),
+            ("dt", math.isfinite(self.dt) and self.dt > 0, "a finite number > 0 [s]"),
+            ("ds", math.isfinite(self.ds) and 0 < self.ds <= 1, "in (0, 1]"),
+            ("ds_max", math.isfinite(self.ds_max) and self.ds <= self.ds_max <= 1, "in [ds, 1]"),
+            ("max_points", self.max_points >= 1, "an integer >= 1"),
+            ("max_period", self.max_period >= 1, "an integer >= 1"),
+            ("newton_tol", 1e-14 <= self.newton_tol <= 1e-4, "in [1e-14, 1e-4]"),
+        )
+        for name, ok, accepted in checks:
+            if not ok:
+                raise ConfigError(f"{name} = {getattr(self, name)!r} must be {accepted}")
+        if 1.0 / self.params().fe < self.dt:
+            raise ConfigError(f"dt = {self.dt:g} s is longer than the forcing period {1 / self.params().fe:g} s")
+
+    @property
+    def lam0(self) -> float:
+        return self.start if self.start_value is None else self.start_value
+
+    def params(self) -> ModelParams:
+        """The model at the start value."""
+        return ModelParams.from_mapping(self.model).replace(**{self.parameter: self.lam0})
+
+    def problem(self) -> PendulumShooting:
+        return PendulumShooting(self.params(), self.parameter, self.period, self.dt, self.eps,
+                                lam_scale=abs(self.stop - self.start))
+
+    def settings(self) -> Settings:
+        return Settings(ds=self.ds, ds_max=self.ds_max, max_points=self.max_points,
+                        max_period=self.max_period, newton_tol=self.newton_tol)
+
+    def to_dict(self) -> dict[str, Any]:
+        d = dataclasses.asdict(self)
+        d["model"] = ModelParams.from_mapping(self.model).to_dict()
+        d["start_section"] = None if self.start_section is None else list(self.start_section)
+        d["steps_per_period"] = self.problem().steps
+        return d
+
+
+def run_continuation(config: ContinuationConfig, progress: bool = False) -> dict[str, Any]:
+    """Run the continuation of ``config`` and return its JSON document (module docstring).
+
+    Raises :class:`~pendsweep.continuation.ContinuationError` when Newton
+    does not converge at the start (a runtime failure).
+    """
+    from tqdm.auto import tqdm
+
+    problem = config.problem()
+    x0 = np.array(config.start_section) if config.start_section is not None else semi_trivial_section(problem.params)
+    bar = tqdm(unit="pt", disable=not progress, desc=f"continue {config.parameter}")
+    try:
+        result = Continuation(problem, (config.start, config.stop), config.settings(), progress=bar.update).run(
+            x0, config.lam0
+        )
+    finally:
+        bar.close()
+    return document(result, config)
+
+
+def document(result: Result, config: ContinuationConfig) -> dict[str, Any]:
+    """The JSON document of a continuation result."""
+
+    def point(pt) -> dict[str, Any]:
+        return {
+            "value": float(pt.lam),
+            "section": [float(v) for v in pt.x],
+            "multipliers": [[float(m.real), float(m.imag)] for m in pt.multipliers],
+            "max_multiplier": pt.max_multiplier,
+            "stable": bool(pt.stable),
+        }
+
+    doc = {
+        "parameter": config.parameter,
+        "unit": PARAM_SPECS[config.parameter].unit,
+        "bifurcations": [{"type": b.kind, "value": float(b.lam), "branch": b.branch} for b in result.bifurcations],
+        "branches": [{"period": b.period, "points": [point(p) for p in b.points]} for b in result.branches],
+        "branch_ends": [{"branch": i, "origin": b.origin, "ends": list(b.ends)} for i, b in enumerate(result.branches)],
+    }
+    doc.update(run_metadata("continuation", config.to_dict()))
+    return doc
+
+
+def write_json(doc: dict[str, Any], path: Path) -> None:
+    """Write ``doc`` to ``path`` atomically (a reader sees the old file or the whole new one)."""
+    path = Path(path)
+    check_writable(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w") as fh:
+            json.dump(doc, fh, indent=1)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def read_json(path: Path) -> dict[str, Any]:
+    """A continuation document written by :func:`write_json` (ConfigError otherwise)."""
+    try:
+        doc = json.loads(Path(path).read_text())
+    except FileNotFoundError:
+        raise ConfigError(f"no continuation file at {str(path)!r}") from None
+    except json.JSONDecodeError as exc:
+        raise ConfigError(f"{str(path)!r} is not valid JSON: {exc}") from None
+    if not isinstance(doc, dict) or doc.get("kind") != "continuation":
+        raise ConfigError(f"{str(path)!r} is not a continuation result (no \"kind\": \"continuation\")")
+    return doc
+
+
+#: Relative repeat tolerance of recorded sections for a sweep point to count as a start orbit.
+START_REPEAT_TOL = 1e-2
+
+
+def section_period(sections: np.ndarray) -> int | None:
+    """Smallest ``n`` with the last ``n`` recorded sections repeating the ``n`` before them, or ``None``.
+
+    ``sections`` is ``(periods, 4)`` [m, m/s, rad, rad/s]; each component is
+    compared relative to its range over the record (theta wrapped), to
+    :data:`START_REPEAT_TOL` - only a Newton start, which need not be exact.
+    Rotating orbits qualify (the section is wrapped).
+    """
+    size = np.maximum(np.ptp(sections, axis=0), np.array([1e-6, 1e-5, 1e-3, 1e-2]))
+    for n in range(1, sections.shape[0] // 2 + 1):
+        d = sections[-n:] - sections[-2 * n : -n]
+        d[:, 2] = (d[:, 2] + np.pi) % (2 * np.pi) - np.pi
+        if np.all(np.abs(d) <= START_REPEAT_TOL * size):
+            return n
+    return None
+
+
+def start_from_file(path: Path, parameter: str, value: float) -> tuple[tuple[float, ...], float, int]:
+    """A start orbit ``(section, parameter value, period)`` from a file.
+
+    * a sweep result (``.parquet``): the point of the first branch whose value
+      is nearest ``value``, its last recorded section, and the period with
+      which its recorded sections repeat (:func:`section_period`; rotating
+      orbits included);
+    * a JSON object ``{"value": v, "section": [4 numbers], "period": k}``
+      (``period`` defaults to 1), for example one point of a continuation
+      document with its branch's period added.
+    """
+    path = Path(path)
+    if path.suffix == ".parquet":
+        df, meta = read_results(path)
+        swept = meta.get("config", {}).get("parameter")
+        if swept != parameter:
+            raise ConfigError(f"{str(path)!r} sweeps {swept!r}, not {parameter!r}")
+        first = df[(df["direction"] == df["direction"].iloc[0]) & (df["start"] == 0) & (df["status"] == "ok")]
+        if first.empty:
+            raise ConfigError(f"{str(path)!r} holds no finished point to start from")
+        values = np.sort(first[parameter].unique())
+        nearest = float(values[np.argmin(np.abs(values - value))])
+        rows = first[first[parameter] == nearest].sort_values("period")
+        sections = rows[["y_sec", "ydot_sec", "theta_sec", "thetadot_sec"]].to_numpy(dtype=float)
+        period = section_period(sections)
+        if period is None:
+            motion = str(rows["motion"].iloc[-1]) if "motion" in rows else "unclassified"
+            raise ConfigError(
+                f"{str(path)!r} at {parameter} = {nearest:g} is {motion!r}: its recorded sections do not repeat "
+                f"(to {START_REPEAT_TOL:g}) with a period of at most {len(sections) // 2}; choose another --start-value"
+            )
+        return tuple(sections[-1]), nearest, period
+    try:
+        data = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise ConfigError(f"no start file at {str(path)!r}") from None
+    except json.JSONDecodeError as exc:
+        raise ConfigError(f"start file {str(path)!r} is not valid JSON: {exc}") from None
+    if not isinstance(data, dict) or "section" not in data or "value" not in data:
+        raise ConfigError(f"start file {str(path)!r} must hold {{\"value\": v, \"section\": [4 numbers], \"period\": k}}")
+    return tuple(data["section"]), float(data["value"]), int(data.get("period", 1))
