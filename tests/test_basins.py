@@ -169,6 +169,17 @@ def test_settling_finds_the_classifiers_period(n):
     assert not settling(_records(sections[:40]), np.ones(4)).settled[0] or n == 1
 
 
+def test_vectorised_scales_are_the_classifiers():
+    from pendsweep.attractors import section_scales_many
+    from pendsweep.classify import section_scales
+
+    p = ModelParams().replace(alpha=30.0, fe=2.5)
+    rec = run_batch([p, p.replace(alpha=10.0)], np.array([[0, 0, 0.3, 0], [0, 0, 0.1, 0]]), 0, 30).records
+    many = section_scales_many(rec, p.omega_e, p.omega_p)
+    for i in range(2):
+        assert many[i] == pytest.approx(section_scales(rec[i], p), rel=1e-15)
+
+
 def test_settling_rotation_number_and_rest():
     cycle = np.array([[0.0, 0.0, 1.0, 5.0], [0.0, 0.0, -2.0, 6.0], [0.0, 0.0, 0.5, 7.0]])
     found = settling(_records(np.tile(cycle, (10, 1)), np.tile([1, 1, 0], 10)), np.ones(4))

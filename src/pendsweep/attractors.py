@@ -28,7 +28,7 @@ axis) and also returns *when* each run settled: the first period of the
 stretch, ending at the record's end, over which the repeat holds. It is the
 settling detector of the basin engine (:mod:`pendsweep.basins`), and meant
 for an adaptive transient in sweeps (stop integrating a point once it has
-settled).
+settled); :func:`section_scales_many` gives its ``scales`` argument.
 
 :func:`identify_attractors` deduplicates settled runs into attractors. Two
 runs are on the same attractor when they have the same cycle length ``n``,
@@ -49,6 +49,7 @@ from .kernels._layout import (
     REC_ROTATIONS,
     REC_THETA_ABSMAX,
     REC_THETADOT_SEC,
+    REC_Y_ABSMAX,
     REC_Y_SEC,
 )
 from .params import ENCODER_RESOLUTION
@@ -121,6 +122,28 @@ def motion_label(at_rest: bool, period: int, turns: int) -> str:
     if at_rest:
         return "semi-trivial"
     return "rotating" if turns != 0 else f"periodic-{period}"
+
+
+def section_scales_many(records: np.ndarray, omega_e, omega_p) -> np.ndarray:
+    """:func:`pendsweep.classify.section_scales` for many runs at once.
+
+    Parameters
+    ----------
+    records : float64[k, periods, 8]
+        Per-period records (NaN rows ignored).
+    omega_e, omega_p : float or float64[k]
+        Forcing and pendulum angular frequencies [rad/s].
+
+    Returns
+    -------
+    float64[k, 4]
+        ``(Y, w_e Y, 1, w_p)`` per run, ``Y`` the largest |y| [m] of its
+        record (1 when the record holds none).
+    """
+    k = records.shape[0]
+    Y = np.fmax.reduce(records[:, :, REC_Y_ABSMAX], axis=1) if records.shape[1] else np.zeros(k)
+    Y = np.where(np.isfinite(Y) & (Y > 0), Y, 1.0)
+    return np.stack([Y, omega_e * Y, np.ones(k), np.broadcast_to(omega_p, (k,))], axis=1)
 
 
 def repeat_mask(records: np.ndarray, scales: np.ndarray, n: int, tol: float) -> np.ndarray:

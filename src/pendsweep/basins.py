@@ -53,12 +53,13 @@ from .attractors import (
     cycle_distance,
     identify_attractors,
     repeat_mask,
+    section_scales_many,
     settling,
 )
 from .classify import MAX_PERIOD
 from .errors import ConfigError
 from .kernels import STATUS_DIVERGED, STATUS_OK, STATUS_UNSTABLE
-from .kernels._layout import REC_THETA_ABSMAX, REC_THETADOT_SEC, REC_Y_ABSMAX, REC_Y_SEC
+from .kernels._layout import REC_THETA_ABSMAX, REC_THETADOT_SEC, REC_Y_SEC
 from .params import ModelParams
 from .status import Status
 
@@ -85,14 +86,6 @@ class StroboscopicMap(Protocol):
     def scales_for(self, ids: np.ndarray, records: np.ndarray) -> np.ndarray:
         """Section divisors ``(k, 4)`` of runs ``ids`` from their records."""
         ...
-
-
-def _pendulum_scales(records: np.ndarray, omega_e: np.ndarray, omega_p: np.ndarray) -> np.ndarray:
-    """Vectorised :func:`pendsweep.classify.section_scales` for ``(k, periods, 8)`` records."""
-    Y = np.fmax.reduce(records[:, :, REC_Y_ABSMAX], axis=1) if records.shape[1] else np.zeros(records.shape[0])
-    Y = np.where(np.isfinite(Y) & (Y > 0), Y, 1.0)
-    k = records.shape[0]
-    return np.stack([Y, omega_e * Y, np.ones(k), np.broadcast_to(omega_p, (k,))], axis=1)
 
 
 @dataclass(frozen=True)
@@ -128,7 +121,7 @@ class EmulatedMap:
         ps = self._params_of(ids)
         we = np.array([p.omega_e for p in ps]) if len(self.params) > 1 else self.params[0].omega_e
         wp = np.array([p.omega_p for p in ps]) if len(self.params) > 1 else self.params[0].omega_p
-        return _pendulum_scales(records, we, wp)
+        return section_scales_many(records, we, wp)
 
 
 @dataclass(frozen=True)
@@ -166,7 +159,7 @@ class BackendMap:
         )
 
     def scales_for(self, ids: np.ndarray, records: np.ndarray) -> np.ndarray:
-        return _pendulum_scales(records, self.params.omega_e, self.params.omega_p)
+        return section_scales_many(records, self.params.omega_e, self.params.omega_p)
 
 
 @dataclass
