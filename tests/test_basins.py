@@ -169,6 +169,18 @@ def test_settling_finds_the_classifiers_period(n):
     assert not settling(_records(sections[:40]), np.ones(4)).settled[0] or n == 1
 
 
+def test_default_sampling_is_multistarts():
+    from pendsweep.sweep import SweepConfig, multistart_initials
+
+    config = BasinConfig("alpha", (30.0, 40.0), {"fe": 2.5}, samples=50, seed=4)
+    sweep = SweepConfig("alpha", (30.0, 40.0), {"fe": 2.5}, mode="multistart", starts=51, seed=4)
+    for point in range(2):
+        theta0, thetadot0 = config.initial_conditions(point)
+        ms = multistart_initials(sweep, point)[1:]
+        assert theta0 == pytest.approx(ms[:, 2], rel=1e-15, abs=1e-15)
+        assert thetadot0 == pytest.approx(ms[:, 3], rel=1e-14, abs=1e-14)
+
+
 def test_vectorised_scales_are_the_classifiers():
     from pendsweep.attractors import section_scales_many
     from pendsweep.classify import section_scales
