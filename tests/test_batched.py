@@ -6,8 +6,8 @@ import numba as nb
 import numpy as np
 import pytest
 
-from pendsweep.backends import EmulatedBackend, PointRun
-from pendsweep.batch import chunk_bounds, run_batch
+from pendsweep.backends import BackendBase, EmulatedBackend, PointRun
+from pendsweep.backends._batch import chunk_bounds, run_batch
 from pendsweep.classify import classify_run
 from pendsweep.errors import ConfigError
 from pendsweep.kernels import RECORD_COLUMNS, STATUS_DIVERGED, STATUS_OK
@@ -203,16 +203,11 @@ def test_bench_peers_integrate_the_same_equations():
     np.testing.assert_allclose(peer, run_batch(params, states, 0, 1).states, rtol=0, atol=1e-13)
 
 
-class _ScalarOnly:
-    """The emulated backend without its batched kernel (forces the per-point path)."""
+class _ScalarOnly(EmulatedBackend):
+    """The emulated backend without its batched kernel: the contract's per-point fallback."""
 
-    def __init__(self):
-        self._backend = EmulatedBackend()
-
-    def __getattr__(self, name):
-        if name == "run_points":
-            raise AttributeError(name)
-        return getattr(self._backend, name)
+    batched = False
+    run_points = BackendBase.run_points
 
 
 def test_hopf_simulate_rows_run_batched_in_lockstep_and_match_the_scalar_kernel(monkeypatch):

@@ -183,6 +183,8 @@ def test_batched_evidence_gives_the_labels_of_point_by_point_evidence():
     backend = make_backend("emulated")
 
     class PointByPoint:  # the same backend without its batched evidence
+        batched = False  # the contract's declaration: no batched kernel, no evidence_many
+
         def run_point(self, *args):
             return backend.run_point(*args)
 

@@ -29,7 +29,7 @@ import numba as nb
 import numpy as np
 
 from ..backends import make_backend
-from ..batch import run_batch
+from ..backends._batch import run_batch
 from ..kernels import wrap_angle
 from ..params import TABLE_IV, ModelParams
 from . import benchmark

@@ -11,10 +11,11 @@ from ..backends import BACKENDS
 from ..errors import ConfigError
 from ..executors import make_executor
 from ..hopf import METHODS, HopfConfig, run_hopf
+from ..params import ENCODER_RESOLUTION
 from ..sweep import value_range
 from ._app import FINITE, main
-from ._executor import apply_options, executor_options
 from ..gpu import with_device
+from ._executor import apply_options, executor_options, work_options
 from ._sweep import DEVICE_OPTION, _finite, _key_value
 
 
@@ -53,14 +54,16 @@ def parse_values(text: str, what: str) -> tuple[float, ...]:
 @click.option("--tol", type=FINITE, default=0.1, show_default=True, help="Simulate: bisection bracket width [N].")
 @click.option("--alpha-max", type=FINITE, default=500.0, show_default=True,
               help="Largest forcing amplitude searched [N].")
+@click.option("--rest-threshold", type=FINITE, default=ENCODER_RESOLUTION, show_default=True,
+              help="Simulate: the kicked pendulum is at rest when its last period's max|theta| is below this [rad].")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
               default=Path("results/hopf.parquet"), show_default=True, help="Results parquet file (resumable).")
 @click.option("-j", "--jobs", type=int, default=-1, show_default=True, help="Parallel workers (-1: all cores).")
 @click.option("--overwrite", is_flag=True, help="Discard earlier results at --output instead of resuming.")
 @click.option("--progress/--no-progress", default=None, help="Progress bar on stderr (default: when stderr is a terminal).")
-@apply_options(executor_options())
+@apply_options(executor_options() + work_options())
 def hopf(what, masses, methods, backend, backend_options, device, model, kick, periods, tol, alpha_max,
-         output, jobs, overwrite, progress, executor, scheduler):
+         rest_threshold, output, jobs, overwrite, progress, executor, scheduler, max_work, yes):
     """Hopf boundary alpha_H [N] of the semi-trivial solution (Fig. 10).
 
     Writes one row per (omega_hat, M, method) with alpha_H and diagnostics
@@ -76,12 +79,13 @@ def hopf(what, masses, methods, backend, backend_options, device, model, kick, p
         model={k: _finite(k, v) for k, v in _key_value(model, "--set").items()},
         backend=backend,
         backend_options=with_device(backend, options, device or options.get("device")),
-        kick=kick, periods=periods, tol=tol, alpha_max=alpha_max,
+        kick=kick, periods=periods, tol=tol, alpha_max=alpha_max, rest_threshold=rest_threshold,
     )
     progress = sys.stderr.isatty() if progress is None else progress
     runner = make_executor(executor, scheduler)
     try:
-        df = run_hopf(config, output, n_jobs=jobs, progress=progress, overwrite=overwrite, executor=runner)
+        df = run_hopf(config, output, n_jobs=jobs, progress=progress, overwrite=overwrite, executor=runner,
+                      max_work=None if yes else max_work)
     finally:
         runner.close()
     shown = ["omega_hat", "fe", "M", "method", "alpha_H", "status", "multiplier", "growth_above", "kick", "runs"]

@@ -23,7 +23,7 @@ DEVICE_OPTION = click.option(
     help="Where batched emulated points integrate (fresh/multistart modes, Hopf simulate): cpu (default) or "
     "cuda, one NVIDIA GPU thread per point (pip install 'pendsweep[cuda]'; -B precision=float32 opts into single precision).",
 )
-from ._executor import apply_options, executor_options
+from ._executor import apply_options, executor_options, max_work, work_options
 
 
 def _key_value(pairs: tuple[str, ...], what: str) -> dict[str, str]:
@@ -83,6 +83,7 @@ def sweep_options(default_step: float, unit: str):
             click.option("--seed", type=int, default=0, show_default=True, help="Seed of every random source."),
             click.option("-j", "--jobs", type=int, default=-1, show_default=True, help="Parallel workers for independent branches/points (-1: all cores)."),
             *executor_options(),
+            *work_options(),
             click.option("-o", "--output", type=click.Path(path_type=Path), default=None, help="Results parquet (default results/<parameter>.parquet)."),
             click.option("--overwrite", is_flag=True, help="Replace earlier results at --output instead of resuming."),
             click.option("--plot", "plot_path", type=click.Path(path_type=Path), default=None, help="Also draw the bifurcation diagram here (.png/.pdf)."),
@@ -151,6 +152,7 @@ def execute(
     title: str | None = None,
     executor: str = "local",
     scheduler: str | None = None,
+    work_limit: float | None = None,
 ) -> None:
     """Run a sweep (on ``executor``), print a summary, optionally plot."""
     from ..executors import make_executor
@@ -163,7 +165,8 @@ def execute(
     t0 = time.perf_counter()
     runner = make_executor(executor, scheduler)
     try:
-        df = run_sweep(config, output, n_jobs=jobs, progress=progress, overwrite=overwrite, executor=runner)
+        df = run_sweep(config, output, n_jobs=jobs, progress=progress, overwrite=overwrite, executor=runner,
+                       max_work=work_limit)
     finally:
         runner.close()
     elapsed = time.perf_counter() - t0
@@ -183,7 +186,7 @@ def _sweep_command(name: str, parameter: str, default_step: float, help_text: st
         config = build_config(parameter, default_step, kw)
         output = kw["output"] or Path(f"results/{parameter}.parquet")
         execute(config, output, jobs=kw["jobs"], overwrite=kw["overwrite"], progress=kw["progress"], plot_path=kw["plot_path"],
-                executor=kw["executor"], scheduler=kw["scheduler"])
+                executor=kw["executor"], scheduler=kw["scheduler"], work_limit=max_work(kw["max_work"], kw["yes"]))
 
     return command
 
@@ -217,7 +220,7 @@ def sweep_any(parameter, **kw):
     config = build_config(parameter, 1.0, kw)
     output = kw["output"] or Path(f"results/{parameter}.parquet")
     execute(config, output, jobs=kw["jobs"], overwrite=kw["overwrite"], progress=kw["progress"], plot_path=kw["plot_path"],
-            executor=kw["executor"], scheduler=kw["scheduler"])
+            executor=kw["executor"], scheduler=kw["scheduler"], work_limit=max_work(kw["max_work"], kw["yes"]))
 
 
 @main.command("run")
@@ -227,8 +230,8 @@ def sweep_any(parameter, **kw):
 @click.option("-j", "--jobs", type=int, default=-1, show_default=True, help="Parallel workers (-1: all cores).")
 @click.option("--overwrite", is_flag=True, help="Replace earlier results instead of resuming.")
 @click.option("--progress/--no-progress", default=None, help="Progress bar on stderr (default: when a terminal).")
-@apply_options(executor_options())
-def run_definition(definition, output, do_plot, jobs, overwrite, progress, executor, scheduler):
+@apply_options(executor_options() + work_options())
+def run_definition(definition, output, do_plot, jobs, overwrite, progress, executor, scheduler, max_work, yes):
     """Run a declarative sweep (sweeps/NAME.toml), or regenerate a results parquet from its own metadata.
 
     Example: pendsweep run sweeps/fig11a.toml
@@ -248,7 +251,7 @@ def run_definition(definition, output, do_plot, jobs, overwrite, progress, execu
         plot_path = spec.plot if do_plot else None
         title = spec.description or None
     execute(config, output, jobs=jobs, overwrite=overwrite, progress=progress, plot_path=plot_path, title=title,
-            executor=executor, scheduler=scheduler)
+            executor=executor, scheduler=scheduler, work_limit=None if yes else max_work)
 
 
 @main.command("plot", short_help="Draw a Fig. 11-style bifurcation diagram.")
