@@ -30,7 +30,7 @@ from pendsweep.basins import (
     settle_runs,
     summarize,
 )
-from pendsweep.batch import run_batch
+from pendsweep.backends._batch import run_batch
 from pendsweep.classify import section_difference, section_period
 from pendsweep.cli import main
 from pendsweep.kernels import N_RECORD_COLUMNS

@@ -112,7 +112,7 @@ class EmulatedMap:
         return [self.params[0]] * len(ids) if len(self.params) == 1 else [self.params[i] for i in ids]
 
     def advance(self, states, periods, ids):
-        from .batch import run_batch
+        from .backends._batch import run_batch
 
         run = run_batch(self._params_of(ids), states, 0, periods, dt=self.dt, signum=self.signum, threads=self.threads)
         return run.records, run.states, run.status
@@ -673,14 +673,65 @@ def runs_from_frame(df: pd.DataFrame) -> SettledRuns:
     )
 
 
-def _basin_task(config: BasinConfig, point: int, starts: np.ndarray, workers: int) -> list[tuple[str, pd.DataFrame]]:
+def _basin_task(config: BasinConfig, point: int, starts: np.ndarray, workers: int) -> list:
+    from .scan import UnitResult
+
     params = config.params_at(config.values[point])
     theta0, thetadot0 = config.initial_conditions(point)
     backend = config.make_backend()
     states = np.stack([backend.initial_state(params, 0.0, 0.0, theta0[s], thetadot0[s]) for s in starts])
     system = system_for(config, point, workers)
     runs = settle_runs(system, states, config.max_periods, ids=starts, round_periods=config.round_periods, tol=config.tol)
-    return [(f"{point}:{int(starts[0])}", runs_frame(config, point, starts, runs))]
+    return [UnitResult(unit_key(point, int(starts[0])), runs_frame(config, point, starts, runs))]
+
+
+def unit_key(point: int, first_start: int) -> str:
+    """Key of one unit of a basin scan: the chunk of starts of ``point`` beginning at ``first_start``."""
+    return f"{int(point)}:{int(first_start)}"
+
+
+@dataclass
+class BasinScan:
+    """A basin computation as a :class:`pendsweep.scan.Scan`: one unit per chunk of starts of one point."""
+
+    config: BasinConfig
+    chunk_starts: int = CHUNK_STARTS
+    desc: str = "basins"
+    row_columns: list[str] = field(default_factory=lambda: list(ROW_COLUMNS))
+
+    def metadata(self) -> dict[str, Any]:
+        from .results import run_metadata
+
+        return run_metadata("basins", self.config.to_dict(), backend=self.config.backend, seed=self.config.seed)
+
+    def _chunks(self) -> list[tuple[int, np.ndarray]]:
+        n = self.config.starts
+        return [
+            (point, np.arange(first, min(first + self.chunk_starts, n)))
+            for point in range(len(self.config.values))
+            for first in range(0, n, self.chunk_starts)
+        ]
+
+    def n_units(self) -> int:
+        return len(self._chunks())
+
+    def work(self):
+        """Upper bound: every start integrated to the cap (early stop typically does 10-30 % of it)."""
+        from .backends import steps_per_period
+        from .scan import Work
+
+        dt = self.config.make_backend().options().get("dt", 1e-3)
+        steps = np.mean([steps_per_period(self.config.params_at(v).fe, dt) for v in self.config.values])
+        return Work(len(self.config.values) * self.config.starts, self.config.max_periods, float(steps))
+
+    def tasks(self, finished, n_jobs: int):
+        workers = (os.cpu_count() or 1) if n_jobs < 1 else n_jobs
+        todo = [(p, st) for p, st in self._chunks() if unit_key(p, int(st[0])) not in finished.keys]
+        # The emulated backend's batched kernel uses every core within a task: tasks run one at a time locally.
+        return [functools.partial(_basin_task, self.config, p, st, workers) for p, st in todo], 1
+
+    def order(self, df: pd.DataFrame) -> pd.DataFrame:
+        return df.sort_values(self.row_columns, kind="stable").reset_index(drop=True)
 
 
 def run_basins(
@@ -692,52 +743,24 @@ def run_basins(
     overwrite: bool = False,
     executor=None,
     chunk_starts: int = CHUNK_STARTS,
+    max_work: float | None = None,
 ) -> pd.DataFrame:
     """Run (or resume) a basin computation; return one row per (point, start).
 
-    Starts go in tasks of ``chunk_starts`` (one parameter point each); a
-    finished task is persisted at once through
-    :class:`~pendsweep.results.ResultStore`, so a rerun of the same
-    configuration skips it. On the emulated backend a task runs the batched
-    kernel on all cores (tasks one after another locally, in parallel on
-    Dask); on other backends a task's starts run on ``n_jobs`` threads.
+    Starts go in units of ``chunk_starts`` (one parameter point each), run
+    by the scan engine (:func:`pendsweep.scan.run_scan`): a finished unit is
+    persisted at once through :class:`~pendsweep.results.ResultStore`, so a
+    rerun of the same configuration skips it. On the emulated backend a
+    unit runs the batched kernel on all cores (units one after another
+    locally, in parallel on Dask); on other backends a unit's starts run on
+    ``n_jobs`` threads. ``max_work`` limits the work estimate, an upper
+    bound (every start to the cap); None: no limit.
     """
-    from tqdm.auto import tqdm
+    from .scan import run_scan
 
-    from .executors import LocalExecutor
-    from .results import ResultStore, run_metadata
-
-    metadata = run_metadata("basins", config.to_dict(), backend=config.backend, seed=config.seed)
-    store = ResultStore(output, metadata, ROW_COLUMNS, overwrite=overwrite) if output is not None else None
-    done_df, _ = store.done() if store is not None else (pd.DataFrame(), {})
-    if store is not None and store.complete:
-        return done_df
-    finished = set(zip(done_df["point"], done_df["start"])) if not done_df.empty else set()
-    workers = (os.cpu_count() or 1) if n_jobs < 1 else n_jobs
-    tasks = []
-    for point in range(len(config.values)):
-        for first in range(0, config.starts, chunk_starts):
-            starts = np.arange(first, min(first + chunk_starts, config.starts))
-            if (point, int(starts[0])) not in finished:
-                tasks.append(functools.partial(_basin_task, config, point, starts, workers))
-    frames = [done_df] if not done_df.empty else []
-    total = len(config.values) * config.starts
-    bar = tqdm(total=total, initial=len(done_df), unit="start", disable=not progress, desc="basins")
-    executor = executor or LocalExecutor()
-    try:
-        for key, rows in executor.map_unordered(tasks, 1):
-            frames.append(rows)
-            if store is not None:
-                store.add(rows, key, [])
-            bar.update(len(rows))
-    finally:
-        bar.close()
-        if store is not None:
-            store.flush()
-    if store is not None:
-        return store.finalize()
-    df = pd.concat(frames, ignore_index=True)
-    return df.sort_values(ROW_COLUMNS, kind="stable").reset_index(drop=True)
+    scan = BasinScan(config, chunk_starts)
+    return run_scan(scan, output, n_jobs=n_jobs, progress=progress, overwrite=overwrite, executor=executor,
+                    max_work=max_work)
 
 
 # -- summaries of finished runs ----------------------------------------------------

@@ -124,7 +124,9 @@ class MapConfig:
         return d
 
 
-def _map_task(config: MapConfig, cells: np.ndarray) -> list[tuple[str, pd.DataFrame]]:
+def _map_task(config: MapConfig, cells: np.ndarray) -> list:
+    from .scan import UnitResult
+
     ny = len(config.y_values)
     ix, iy = cells // ny, cells % ny
     params = tuple(config.params_at(config.x_values[i], config.y_values[j]) for i, j in zip(ix, iy))
@@ -147,7 +149,46 @@ def _map_task(config: MapConfig, cells: np.ndarray) -> list[tuple[str, pd.DataFr
             "theta_absmax": runs.theta_absmax,
         }
     )
-    return [(f"cells:{int(cells[0])}", df)]
+    return [UnitResult(f"cells:{int(cells[0])}", df)]
+
+
+@dataclass
+class MapScan:
+    """A two-parameter map as a :class:`pendsweep.scan.Scan`: one unit per chunk of grid cells."""
+
+    config: MapConfig
+    chunk_cells: int = CHUNK_STARTS
+    desc: str = "map"
+    row_columns: list[str] = field(default_factory=lambda: list(ROW_COLUMNS))
+
+    def metadata(self) -> dict[str, Any]:
+        from .results import run_metadata
+
+        return run_metadata("map", self.config.to_dict(), backend="emulated")
+
+    def _chunks(self) -> list[np.ndarray]:
+        n = self.config.cells
+        return [np.arange(first, min(first + self.chunk_cells, n)) for first in range(0, n, self.chunk_cells)]
+
+    def n_units(self) -> int:
+        return len(self._chunks())
+
+    def work(self):
+        """Upper bound: every cell integrated to the cap."""
+        from .backends import steps_per_period
+        from .scan import Work
+
+        fe = [self.config.params_at(x, y).fe for x in (self.config.x_values[0], self.config.x_values[-1])
+              for y in (self.config.y_values[0], self.config.y_values[-1])]
+        steps = float(np.mean([steps_per_period(f, self.config.dt) for f in fe]))
+        return Work(self.config.cells, self.config.max_periods, steps)
+
+    def tasks(self, finished, n_jobs: int):
+        todo = [c for c in self._chunks() if f"cells:{int(c[0])}" not in finished.keys]
+        return [functools.partial(_map_task, self.config, c) for c in todo], 1
+
+    def order(self, df: pd.DataFrame) -> pd.DataFrame:
+        return df.sort_values(self.row_columns, kind="stable").reset_index(drop=True)
 
 
 def run_map(
@@ -158,46 +199,19 @@ def run_map(
     overwrite: bool = False,
     executor=None,
     chunk_cells: int = CHUNK_STARTS,
+    max_work: float | None = None,
 ) -> pd.DataFrame:
     """Run (or resume) a two-parameter map; one row per grid cell.
 
-    Cells go in tasks of ``chunk_cells``, each on the batched kernel with
-    all cores; finished tasks are persisted through
-    :class:`~pendsweep.results.ResultStore` and skipped on a rerun.
+    Cells go in units of ``chunk_cells``, each on the batched kernel with
+    all cores, run by the scan engine (:func:`pendsweep.scan.run_scan`):
+    finished units are persisted and skipped on a rerun. ``max_work``
+    limits the work estimate (every cell to the cap); None: no limit.
     """
-    from tqdm.auto import tqdm
+    from .scan import run_scan
 
-    from .executors import LocalExecutor
-    from .results import ResultStore, run_metadata
-
-    metadata = run_metadata("map", config.to_dict(), backend="emulated")
-    store = ResultStore(output, metadata, ROW_COLUMNS, overwrite=overwrite) if output is not None else None
-    done_df, _ = store.done() if store is not None else (pd.DataFrame(), {})
-    if store is not None and store.complete:
-        return done_df
-    ny = len(config.y_values)
-    finished = set(done_df["ix"] * ny + done_df["iy"]) if not done_df.empty else set()
-    tasks = []
-    for first in range(0, config.cells, chunk_cells):
-        cells = np.arange(first, min(first + chunk_cells, config.cells))
-        if int(cells[0]) not in finished:
-            tasks.append(functools.partial(_map_task, config, cells))
-    frames = [done_df] if not done_df.empty else []
-    bar = tqdm(total=config.cells, initial=len(done_df), unit="cell", disable=not progress, desc="map")
-    executor = executor or LocalExecutor()
-    try:
-        for key, rows in executor.map_unordered(tasks, 1):
-            frames.append(rows)
-            if store is not None:
-                store.add(rows, key, [])
-            bar.update(len(rows))
-    finally:
-        bar.close()
-        if store is not None:
-            store.flush()
-    if store is not None:
-        return store.finalize()
-    return pd.concat(frames, ignore_index=True).sort_values(ROW_COLUMNS, kind="stable").reset_index(drop=True)
+    return run_scan(MapScan(config, chunk_cells), output, progress=progress, overwrite=overwrite, executor=executor,
+                    max_work=max_work)
 
 
 def hopf_boundaries(config: MapConfig) -> pd.DataFrame | None:

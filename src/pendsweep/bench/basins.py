@@ -8,7 +8,7 @@ import time
 import numpy as np
 
 from ..basins import BasinConfig, run_basins
-from ..batch import run_batch
+from ..backends._batch import run_batch
 from . import benchmark
 
 
