@@ -65,3 +65,4 @@ from . import command  # noqa: E402,F401  (whole commands against a plain script
 from . import gpu  # noqa: E402,F401  (the CUDA kernel; skipped without a GPU)
 from . import continuation  # noqa: E402,F401  (continuation against finite differences and sweeps)
 from . import diagnosis  # noqa: E402,F401  (diagnosis on independent records)
+from . import basins  # noqa: E402,F401  (basin map with early stop, issue 14)

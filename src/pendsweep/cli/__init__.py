@@ -12,5 +12,6 @@ from . import _substructured  # noqa: F401,E402  (registers trace and sync)
 from . import _stability  # noqa: F401,E402  (registers margin)
 from . import _data  # noqa: F401,E402  (registers diagnose, fit-damping, synth)
 from . import _continue  # noqa: F401,E402  (registers continue)
+from . import _basins  # noqa: F401,E402  (registers basins and map)
 
 __all__ = ["main"]
