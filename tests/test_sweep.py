@@ -176,3 +176,18 @@ def test_result_files_get_normal_permissions(tmp_path):
     umask = os.umask(0o022)
     os.umask(umask)
     assert out.stat().st_mode & 0o777 == 0o666 & ~umask
+
+
+def test_adaptive_transient_reaches_what_a_long_fixed_transient_reaches():
+    """--transient auto stops each point once it has settled; the labels are those of a
+    1000-period fixed transient, reached with fewer periods, and the rows say how many."""
+    values = (6.0, 14.0, 16.5, 30.0)  # comes to rest; slow decay below Hopf; slow growth above; period-2
+    auto = run_sweep(SweepConfig("alpha", values, mode="fresh", transient="auto", max_transient_periods=1000))
+    long = run_sweep(SweepConfig("alpha", values, mode="fresh", transient_periods=1000))
+    short = run_sweep(SweepConfig("alpha", values, mode="fresh"))  # the paper's 100 periods
+    first = auto.groupby("point").first()
+    assert first["settled"].all()
+    assert list(first["motion"]) == list(long.groupby("point").first()["motion"])
+    assert (first["transient_periods_used"] < 1000).all()
+    assert first["transient_periods_used"].iloc[-1] < 100  # the period-2 orbit settles before the paper's 100
+    assert (short.groupby("point").first()["motion"] == "transient").any()  # what auto resolves

@@ -38,6 +38,7 @@ import numpy as np
 import pandas as pd
 
 from .backends import BACKENDS, PointRun, make_backend
+from .basins import BackendMap, EmulatedMap, settle_runs
 from .classify import at_rest, classify_runs
 from .errors import ConfigError
 from .executors import Executor
@@ -49,6 +50,7 @@ from .scan import DEFAULT_MAX_WORK, Finished, UnitResult, Work, run_scan, sample
 from .status import Status
 
 MODES = ("continue", "fresh", "multistart")
+TRANSIENTS = ("fixed", "auto")
 #: Most values a sweep's range may hold (checked before the grid is built).
 MAX_VALUES = 1_000_000
 DIRECTIONS = ("up", "down", "both")
@@ -111,6 +113,15 @@ class SweepConfig:
         Registered backend name; ``backend_options`` are its options.
     transient_periods, record_periods : int
         Forcing periods discarded, then recorded, at every point (paper: 100, 20).
+    transient : {"fixed", "auto"}
+        ``fixed`` discards ``transient_periods`` (the paper's protocol).
+        ``auto`` integrates each unit in rounds of 25 periods until it has
+        settled (:func:`pendsweep.attractors.settling`: the section repeats
+        after n <= 8 periods to 1e-3, normalised, over 24 periods, or the
+        rotation number is steady) or ``max_transient_periods`` have passed,
+        then records; rows gain ``settled`` and ``transient_periods_used``.
+    max_transient_periods : int
+        Cap of the adaptive transient [forcing periods].
     initial : tuple of 4 floats
         ``(y [m], ydot [m/s], theta [rad], thetadot [rad/s])`` at the first point.
     kick : float
@@ -132,6 +143,8 @@ class SweepConfig:
     backend_options: dict[str, Any] = field(default_factory=dict)
     transient_periods: int = 100
     record_periods: int = 20
+    transient: str = "fixed"
+    max_transient_periods: int = 1000
     initial: tuple[float, float, float, float] = (0.0, 0.0, 0.1, 0.0)
     kick: float = 0.1
     rest_threshold: float = ENCODER_RESOLUTION
@@ -152,7 +165,9 @@ class SweepConfig:
             raise ConfigError(f"mode = {self.mode!r}; choose one of {', '.join(MODES)}")
         if self.direction not in DIRECTIONS:
             raise ConfigError(f"direction = {self.direction!r}; choose one of {', '.join(DIRECTIONS)}")
-        for name, lo in (("transient_periods", 0), ("record_periods", 1), ("starts", 1)):
+        if self.transient not in TRANSIENTS:
+            raise ConfigError(f"transient = {self.transient!r}; choose one of {', '.join(TRANSIENTS)}")
+        for name, lo in (("transient_periods", 0), ("record_periods", 1), ("starts", 1), ("max_transient_periods", 1)):
             v = getattr(self, name)
             if int(v) != v or v < lo:
                 raise ConfigError(f"{name} = {v!r} must be an integer >= {lo}")
@@ -254,6 +269,8 @@ class PointResult:
     run: PointRun
     kicked: bool
     motion: str = ""
+    settled: bool = False
+    transient_used: int = 0
 
     @property
     def key(self) -> str:
@@ -277,7 +294,39 @@ def result_rows(config: SweepConfig, r: PointResult) -> pd.DataFrame:
     columns["kicked"] = np.full(n, r.kicked)
     columns["status"] = np.full(n, r.run.status.value, dtype=object)
     columns["motion"] = np.full(n, r.motion, dtype=object)
+    if config.transient == "auto":
+        columns["settled"] = np.full(n, r.settled)
+        columns["transient_periods_used"] = np.full(n, r.transient_used, dtype=np.int64)
     return pd.DataFrame(columns)
+
+
+def run_units(config: SweepConfig, backend, params: list, states: np.ndarray, threads=None, one_by_one=False):
+    """Transient and record of units: ``(runs, settled, transient periods used)``.
+
+    ``one_by_one`` runs each unit with the backend's ``run_point`` (continue
+    mode's scalar path) instead of ``run_points``. With ``transient =
+    "auto"`` every unit is integrated in rounds until it settles (see
+    :class:`SweepConfig`), on the batched kernel when the backend has one,
+    then its record is taken from there.
+    """
+    n = len(params)
+    if config.transient == "fixed":
+        if one_by_one:
+            runs = [backend.run_point(q, x, config.transient_periods, config.record_periods) for q, x in zip(params, states)]
+        else:
+            runs = backend.run_points(params, states, config.transient_periods, config.record_periods, threads)
+        return runs, np.zeros(n, dtype=bool), np.full(n, config.transient_periods)
+    if backend.batched and not one_by_one:
+        system = EmulatedMap(tuple(params), dt=backend.dt, signum=backend.signum, threads=threads)
+    else:  # units of one call share their parameters (one point, or one point's starts)
+        system = BackendMap(backend, params[0], entropy=(config.seed,), workers=1)
+    settled = settle_runs(system, np.asarray(states, dtype=np.float64), config.max_transient_periods,
+                          rest_threshold=config.rest_threshold)  # fmt: skip
+    if one_by_one:
+        runs = [backend.run_point(q, x, 0, config.record_periods) for q, x in zip(params, settled.states)]
+    else:
+        runs = backend.run_points(params, settled.states, 0, config.record_periods, threads)
+    return runs, settled.settled, settled.periods_done
 
 
 def _unit(config: SweepConfig, r: PointResult) -> UnitResult:
@@ -306,8 +355,9 @@ def _continue_branch(config, backend, direction, indices, resume) -> Iterator[Un
         elif kick_next:
             state = backend.kick(state, config.kick)
             kicked = True
-        run = backend.run_point(params, state, config.transient_periods, config.record_periods)
-        yield _unit(config, PointResult(direction, i, 0, config.values[i], run, kicked, _classified(config, backend, params, run)))
+        (run,), settled, used = run_units(config, backend, [params], np.array([state]), one_by_one=True)
+        motion = _classified(config, backend, params, run)
+        yield _unit(config, PointResult(direction, i, 0, config.values[i], run, kicked, motion, bool(settled[0]), int(used[0])))
         ok = run.status is Status.OK
         state = run.state if ok else None
         kick_next = ok and at_rest(run.records[:, REC_THETA_ABSMAX], config.rest_threshold)
@@ -322,11 +372,11 @@ def _independent_units(config, backend, units, threads) -> list[UnitResult]:
             initials[i] = multistart_initials(config, i)
         ic = initials[i][s] if config.mode == "multistart" else config.initial
         states.append(backend.initial_state(params[-1], *ic))
-    runs = backend.run_points(params, np.array(states), config.transient_periods, config.record_periods, threads)
+    runs, settled, used = run_units(config, backend, params, np.array(states), threads)
     motions = classify_runs(backend, params, runs, config.rest_threshold)
     return [
-        _unit(config, PointResult("none", i, s, config.values[i], run, False, motion.label))
-        for (i, s), run, motion in zip(units, runs, motions)
+        _unit(config, PointResult("none", i, s, config.values[i], run, False, motion.label, bool(ok), int(n)))
+        for (i, s), run, motion, ok, n in zip(units, runs, motions, settled, used)
     ]
 
 
@@ -364,8 +414,8 @@ def sweep_work(config: SweepConfig, backend) -> Work:
     about 3x for points that are not periodic (extended record, Lyapunov pair).
     """
     steps = [backend.steps_per_period(config.params_at(config.values[i])) for i in sample_indices(len(config.values))]
-    periods = config.transient_periods + config.record_periods
-    return Work(config.n_units, periods, float(np.mean(steps)))
+    transient = config.max_transient_periods if config.transient == "auto" else config.transient_periods
+    return Work(config.n_units, transient + config.record_periods, float(np.mean(steps)))
 
 
 def sweep_metadata(config: SweepConfig) -> dict[str, Any]:

@@ -13,7 +13,7 @@ import click
 from ..backends import BACKENDS
 from ..errors import ConfigError, ParameterError
 from ..params import PARAM_SPECS, ModelParams
-from ..sweep import DIRECTIONS, MODES, SweepConfig, run_sweep, value_range
+from ..sweep import DIRECTIONS, MODES, TRANSIENTS, SweepConfig, run_sweep, value_range
 from ..gpu import DEVICES, with_device
 from ._app import FINITE, main
 
@@ -73,7 +73,9 @@ def sweep_options(default_step: float, unit: str):
             click.option("-B", "--backend-option", "backend_opts", multiple=True, metavar="KEY=VALUE", help="Backend option, e.g. -B signum=stage."),
             DEVICE_OPTION,
             click.option("--dt", type=FINITE, default=None, help="Integration / controller step [s] (default 0.001)."),
-            click.option("--transient-periods", type=int, default=100, show_default=True, help="Forcing periods discarded at each point."),
+            click.option("--transient-periods", type=int, default=100, show_default=True, help="Forcing periods discarded at each point (with --transient fixed)."),
+            click.option("--transient", type=click.Choice(TRANSIENTS), default="fixed", show_default=True, help="fixed: discard --transient-periods (the paper); auto: integrate each point until its section repeats (n <= 8 periods, 1e-3) or its rotation number is steady, then record; rows gain settled, transient_periods_used."),
+            click.option("--max-transient-periods", type=int, default=1000, show_default=True, help="Cap of --transient auto [forcing periods]."),
             click.option("--record-periods", type=int, default=20, show_default=True, help="Forcing periods recorded at each point."),
             click.option("--theta0", type=FINITE, default=0.1, show_default=True, help="Initial pendulum angle [rad]."),
             click.option("--thetadot0", type=FINITE, default=0.0, show_default=True, help="Initial pendulum rate [rad/s]."),
@@ -126,6 +128,8 @@ def build_config(parameter: str, default_step: float, kw: dict[str, Any]) -> Swe
         backend_options=backend_options,
         transient_periods=kw["transient_periods"],
         record_periods=kw["record_periods"],
+        transient=kw["transient"],
+        max_transient_periods=kw["max_transient_periods"],
         initial=(0.0, 0.0, kw["theta0"], kw["thetadot0"]),
         kick=kw["kick"],
         rest_threshold=kw["rest_threshold"],
