@@ -402,3 +402,16 @@ def test_substructured_extended_model_moves_the_totals(tmp_path):
     assert ext["M2"] == pytest.approx(1.3, rel=0.02)
     # The numerical mass M1 is code; the complete system's M = M1 + true M2.
     assert ext["M"] - ext["M2"] == pytest.approx(FIG9_PO.M1, rel=1e-9)
+
+
+def test_replay_is_continuous_in_the_delay_at_whole_samples():
+    """A delay of exactly 18 samples replays like its neighbours (it read the end of the record)."""
+    from pendsweep.diagnose.replay import Replay
+    from pendsweep.diagnose.testbench import draw_case, generate
+
+    _, case = draw_case(43)  # a 2 kHz substructured record from the independent testbench
+    replay = Replay(generate(case))
+    at = replay.simulate({"tau": 18 * replay.dt})["theta"]
+    near = replay.simulate({"tau": 18 * replay.dt * (1 + 1e-9)})["theta"]
+    assert np.nanmax(np.abs(at)) < 2.0  # the record swings about 1.3 rad
+    np.testing.assert_allclose(at, near, atol=1e-6)
