@@ -22,7 +22,7 @@ import pytest
 from click.testing import CliRunner
 
 from pendsweep.backends import PointRun, make_backend
-from pendsweep.batch import run_batch
+from pendsweep.backends._batch import run_batch
 from pendsweep.classify import classify_run
 from pendsweep.cli import main
 from pendsweep.errors import ConfigError
@@ -43,7 +43,7 @@ SIMULATED = textwrap.dedent(
     """
     import sys
     import numpy as np
-    from pendsweep.batch import run_batch
+    from pendsweep.backends._batch import run_batch
     from pendsweep.params import TABLE_IV
 
     data = np.load(sys.argv[1])
@@ -112,7 +112,7 @@ def sweep_config(device: str) -> SweepConfig:
 
 
 def _run(out, prefix):
-    from pendsweep.batch import BatchRun
+    from pendsweep.backends._batch import BatchRun
 
     return BatchRun(*(out[f"{prefix}_{k}"] for k in BatchRun._fields))
 
@@ -257,7 +257,7 @@ def test_real_gpu_matches_cpu_on_many_points():
 
 
 def _subset(run, mask):
-    from pendsweep.batch import BatchRun
+    from pendsweep.backends._batch import BatchRun
 
     return BatchRun(*(a[mask] for a in run))
 

@@ -86,6 +86,16 @@ def test_coulomb_friction_makes_boundary_depend_on_kick():
     assert small > large + 1.0
 
 
+def test_rest_threshold_reaches_the_simulated_protocol():
+    """The protocol's "at rest" is the run's rest_threshold: above pi rad the kicked pendulum never counts as growing."""
+    p = at(SMOOTH, 1.05)
+    backend = make_backend("emulated")
+    assert hopf_simulate(p, backend, periods=60, alpha_max=40.0)["status"] == "ok"
+    lenient = hopf_simulate(p, backend, periods=60, alpha_max=40.0, rest_threshold=4.0)
+    assert lenient["status"] == "not-found" and lenient["growth_below"] <= 0.0
+    assert HopfConfig(omega_hat=(1.0,), rest_threshold=4.0).to_dict()["rest_threshold"] == 4.0
+
+
 def test_scan_rows_resume_and_reject_other_config(tmp_path):
     out = tmp_path / "hopf.parquet"
     config = HopfConfig(omega_hat=(0.95, 1.05), masses=(5.9, 10.9), methods=("analytic", "floquet"))
@@ -115,6 +125,7 @@ def test_scan_resumes_from_parts(tmp_path):
     for i in range(2):
         store.add(hopf_point(config, 0, i, "analytic"), f"0:{i}:analytic", [])
     store.flush()
+    store.close()  # the interrupted run ends: its lock goes
     resumed = run_hopf(config, out2)
     assert resumed.equals(full)
 

@@ -15,8 +15,9 @@ import pytest
 SRC = Path(__file__).resolve().parents[1] / "src" / "pendsweep"
 KERNEL_FILES = sorted((SRC / "kernels").glob("*.py"))
 #: Benchmark peers: the scripts a user would write without pendsweep, independent by design
-#: (numpy/JAX cannot call numba functions; the naive script must not import the package).
-PEERS = ["bench/naive_sweep.py", "bench/throughput.py"]
+#: (numpy/JAX cannot call numba functions; the naive script must not import the package), and the
+#: diagnosis testbench, whose records must share no integration code with the replay (issue 11).
+PEERS = ["bench/naive_sweep.py", "bench/throughput.py", "diagnose/testbench.py"]
 #: The longest a numba kernel function may be (issue 10: "no kernel function over about 80 lines").
 MAX_KERNEL_LINES = 80
 

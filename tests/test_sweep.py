@@ -6,7 +6,6 @@ import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -72,6 +71,17 @@ def test_kick_only_when_at_rest():
     config = SweepConfig("alpha", (0.0, 0.0, 20.0, 20.0), **dict(transient_periods=100, record_periods=5))
     df = run_sweep(config).groupby("point")["kicked"].first()
     assert list(df) == [False, True, True, False]  # rest at 0 N -> kick; swinging at 20 N -> none
+
+
+def test_rest_threshold_reaches_the_kick_and_the_motion_label():
+    """One "at rest" rule: --rest-threshold decides the kick and the semi-trivial label alike."""
+    swinging = SweepConfig("alpha", (20.0, 20.0), **SHORT)
+    default = run_sweep(swinging).groupby("point")[["kicked", "motion"]].first()
+    assert default["motion"].iloc[0] != "semi-trivial" and not default["kicked"].any()
+    # Wrapped |theta| never exceeds pi, so below 4 rad every finished point is "at rest".
+    lenient = run_sweep(SweepConfig("alpha", (20.0, 20.0), rest_threshold=4.0, **SHORT))
+    labels = lenient.groupby("point")[["kicked", "motion"]].first()
+    assert list(labels["motion"]) == ["semi-trivial", "semi-trivial"] and list(labels["kicked"]) == [False, True]
 
 
 def test_diverged_point_is_recorded_and_branch_restarts(emulated):
@@ -166,3 +176,18 @@ def test_result_files_get_normal_permissions(tmp_path):
     umask = os.umask(0o022)
     os.umask(umask)
     assert out.stat().st_mode & 0o777 == 0o666 & ~umask
+
+
+def test_adaptive_transient_reaches_what_a_long_fixed_transient_reaches():
+    """--transient auto stops each point once it has settled; the labels are those of a
+    1000-period fixed transient, reached with fewer periods, and the rows say how many."""
+    values = (6.0, 14.0, 16.5, 30.0)  # comes to rest; slow decay below Hopf; slow growth above; period-2
+    auto = run_sweep(SweepConfig("alpha", values, mode="fresh", transient="auto", max_transient_periods=1000))
+    long = run_sweep(SweepConfig("alpha", values, mode="fresh", transient_periods=1000))
+    short = run_sweep(SweepConfig("alpha", values, mode="fresh"))  # the paper's 100 periods
+    first = auto.groupby("point").first()
+    assert first["settled"].all()
+    assert list(first["motion"]) == list(long.groupby("point").first()["motion"])
+    assert (first["transient_periods_used"] < 1000).all()
+    assert first["transient_periods_used"].iloc[-1] < 100  # the period-2 orbit settles before the paper's 100
+    assert (short.groupby("point").first()["motion"] == "transient").any()  # what auto resolves

@@ -3,7 +3,8 @@
 Every sweep unit (direction, point, start) gets one ``motion`` label:
 
 ``semi-trivial``
-    max |theta| over the record below one encoder pulse (0.0013 rad).
+    At rest: max |theta| over the record below ``rest_threshold`` (one
+    encoder pulse, 0.0013 rad, by default; :func:`at_rest`).
 ``periodic-n`` (n = 1..8)
     The stroboscopic section repeats after n forcing periods: every
     component of the normalised section differs from the one n periods
@@ -26,7 +27,7 @@ Every sweep unit (direction, point, start) gets one ``motion`` label:
     radius).
 ``transient``
     Not settled: the pendulum is still coming to rest (last recorded period
-    below one encoder pulse, earlier ones above), or the record is not
+    at rest, earlier ones not), or the record is not
     periodic but the extended record becomes
     periodic, or the Lyapunov exponent is negative beyond its uncertainty
     (still converging to an orbit), or neither a closed curve nor chaos is
@@ -88,6 +89,18 @@ CURVE_MAX_GAP = math.pi / 2
 
 _SEC = slice(REC_Y_SEC, REC_THETADOT_SEC + 1)  # record columns y_sec, ydot_sec, theta_sec, thetadot_sec
 _THETA = 2
+
+
+def at_rest(theta_absmax: np.ndarray | float, rest_threshold: float = ENCODER_RESOLUTION) -> bool:
+    """The one "pendulum at rest" rule: the largest |theta| [rad] of a window is below ``rest_threshold`` [rad].
+
+    ``theta_absmax`` holds per-period envelopes (record column
+    ``theta_absmax``) over the window in question; sweeps (kick in continue
+    mode), the classifier and the Hopf protocol all decide rest here, with
+    the run's ``rest_threshold`` (one encoder pulse by default). The batched
+    evidence kernel applies the same comparison (its ``rest`` argument).
+    """
+    return float(np.max(theta_absmax)) < rest_threshold
 
 
 @dataclass(frozen=True)
@@ -167,6 +180,7 @@ def two_trajectory_log_stretch(
     periods: int,
     scales: np.ndarray,
     d0: float = LYAP_D0,
+    rest_threshold: float = ENCODER_RESOLUTION,
 ) -> np.ndarray:
     """Per-period log separation growth of two nearby trajectories (Benettin).
 
@@ -186,8 +200,8 @@ def two_trajectory_log_stretch(
     -------
     float64[<= periods]
         ``log(|separation| / d0)`` after each period. The estimate stops
-        early when the reference pendulum comes to rest (max |theta| below
-        one encoder pulse), where Coulomb friction chatters and the
+        early when the reference pendulum comes to rest (:func:`at_rest`
+        with ``rest_threshold`` [rad]), where Coulomb friction chatters and the
         separation means nothing, or when a trajectory diverges.
     """
     reference = np.array(state, dtype=np.float64)
@@ -199,7 +213,7 @@ def two_trajectory_log_stretch(
         full = copy - reference  # entries past the section follow along
         section, distance = twin_separation(tuple(reference[:4]), tuple(copy[:4]), scales)
         full[:4] = section
-        if swing < ENCODER_RESOLUTION or not (math.isfinite(distance) and distance > 0):
+        if at_rest(swing, rest_threshold) or not (math.isfinite(distance) and distance > 0):
             break
         out.append(math.log(distance / d0))
         copy = reference + full * (d0 / distance)
@@ -229,17 +243,20 @@ def closed_curve(sections: np.ndarray, scales: np.ndarray) -> bool:
 
 
 def decided_by_record(
-    records: np.ndarray, scales: np.ndarray, status: Status = Status.OK, rest: float = ENCODER_RESOLUTION
+    records: np.ndarray, scales: np.ndarray, status: Status = Status.OK, rest_threshold: float = ENCODER_RESOLUTION
 ) -> Motion | None:
-    """The label when the record alone decides it, else None (the point needs :class:`Evidence`)."""
+    """The label when the record alone decides it, else None (the point needs :class:`Evidence`).
+
+    ``rest_threshold`` [rad] is the run's "at rest" limit (:func:`at_rest`).
+    """
     if status is not Status.OK or not np.isfinite(records).all():
         return Motion("n/a")
-    if records[:, REC_THETA_ABSMAX].max() < rest:
+    if at_rest(records[:, REC_THETA_ABSMAX], rest_threshold):
         return Motion("semi-trivial")
     n = section_period(records[:, _SEC], scales)
     if n:
         return Motion("rotating" if np.any(records[:, REC_ROTATIONS] != 0) else f"periodic-{n}", n)
-    if records[-1, REC_THETA_ABSMAX] < rest:
+    if at_rest(records[-1, REC_THETA_ABSMAX], rest_threshold):
         return Motion("transient")  # still coming to rest
     return None
 
@@ -264,13 +281,15 @@ def classify_records(
     scales: np.ndarray,
     status: Status = Status.OK,
     evidence: Callable[[], Evidence] | None = None,
+    rest_threshold: float = ENCODER_RESOLUTION,
 ) -> Motion:
     """Classify one unit from its per-period records (``pendsweep.kernels.RECORD_COLUMNS``).
 
     ``evidence`` is called only when the record itself is not decisive
     (not at rest, not periodic); without it such points are ``transient``.
+    ``rest_threshold`` [rad] is the run's "at rest" limit (:func:`at_rest`).
     """
-    motion = decided_by_record(records, scales, status)
+    motion = decided_by_record(records, scales, status, rest_threshold)
     if motion is not None:
         return motion
     if evidence is None:
@@ -278,7 +297,9 @@ def classify_records(
     return classify_with_evidence(records, scales, evidence())
 
 
-def backend_evidence(backend, params: ModelParams, run: PointRun, scales: np.ndarray) -> Evidence:
+def backend_evidence(
+    backend, params: ModelParams, run: PointRun, scales: np.ndarray, rest_threshold: float = ENCODER_RESOLUTION
+) -> Evidence:
     """Extend the record and estimate the Lyapunov exponent with the point's backend."""
     extension = backend.run_point(params, run.state, 0, EXTEND_PERIODS)
     sections = extension.records[:, _SEC] if extension.status is Status.OK else np.empty((0, 4))
@@ -289,29 +310,34 @@ def backend_evidence(backend, params: ModelParams, run: PointRun, scales: np.nda
 
     start = backend.initial_state(params, *run.records[0, _SEC])
     periods = max(run.records.shape[0], LYAP_MIN_PERIODS)
-    return Evidence(sections, two_trajectory_log_stretch(advance, start, periods, scales))
+    return Evidence(
+        sections, two_trajectory_log_stretch(advance, start, periods, scales, rest_threshold=rest_threshold)
+    )
 
 
-def classify_run(backend, params: ModelParams, run: PointRun) -> Motion:
+def classify_run(backend, params: ModelParams, run: PointRun, rest_threshold: float = ENCODER_RESOLUTION) -> Motion:
     """Classify a finished sweep point, re-simulating with its backend when needed."""
-    return classify_runs(backend, [params], [run])[0]
+    return classify_runs(backend, [params], [run], rest_threshold)[0]
 
 
-def classify_runs(backend, params: Sequence[ModelParams], runs: Sequence[PointRun]) -> list[Motion]:
+def classify_runs(
+    backend, params: Sequence[ModelParams], runs: Sequence[PointRun], rest_threshold: float = ENCODER_RESOLUTION
+) -> list[Motion]:
     """Classify finished points; the evidence of all undecided ones is computed together.
 
-    A backend with a batched kernel integrates every undecided point's
-    extension and Lyapunov twin in one launch (``evidence_many``); others
-    re-simulate point by point through :func:`backend_evidence`.
+    A batched backend (``backend.batched``) integrates every undecided
+    point's extension and Lyapunov twin in one launch (its
+    ``evidence_many``); others re-simulate point by point through
+    :func:`backend_evidence`. ``rest_threshold`` [rad] is the run's "at
+    rest" limit (:func:`at_rest`), in both paths.
     """
     scales = [section_scales(r.records, q) if r.status is Status.OK else np.ones(4) for q, r in zip(params, runs)]
-    motions = [decided_by_record(r.records, s, r.status) for r, s in zip(runs, scales)]
+    motions = [decided_by_record(r.records, s, r.status, rest_threshold) for r, s in zip(runs, scales)]
     undecided = [j for j, m in enumerate(motions) if m is None]
     if not undecided:
         return motions
-    evidence_many = getattr(backend, "evidence_many", None)
-    if evidence_many is not None:
-        found = evidence_many(
+    if backend.batched:
+        found = backend.evidence_many(
             [params[j] for j in undecided],
             np.array([runs[j].state[:4] for j in undecided]),
             np.array([runs[j].records[0, _SEC] for j in undecided]),
@@ -319,11 +345,11 @@ def classify_runs(backend, params: Sequence[ModelParams], runs: Sequence[PointRu
             extend_periods=EXTEND_PERIODS,
             lyapunov_periods=max(runs[undecided[0]].records.shape[0], LYAP_MIN_PERIODS),
             d0=LYAP_D0,
-            rest=ENCODER_RESOLUTION,
+            rest=rest_threshold,
         )
         evidence = [Evidence(sections, stretch) for sections, stretch in found]
     else:
-        evidence = [backend_evidence(backend, params[j], runs[j], scales[j]) for j in undecided]
+        evidence = [backend_evidence(backend, params[j], runs[j], scales[j], rest_threshold) for j in undecided]
     for j, ev in zip(undecided, evidence):
         motions[j] = classify_with_evidence(runs[j].records, scales[j], ev)
     return motions

@@ -45,7 +45,11 @@ class Executor(Protocol):
 
 
 class LocalExecutor:
-    """Run tasks on ``n_jobs`` threads of this process (joblib's threading backend)."""
+    """Run tasks on ``n_jobs`` threads of this process (joblib's threading backend).
+
+    Any exception, raised by a task or by the thread pool itself, is raised
+    again in the caller's thread; the caller never waits on a dead runner.
+    """
 
     name = "local"
 
@@ -57,31 +61,29 @@ class LocalExecutor:
         from joblib import Parallel, delayed  # imported on first parallel use: joblib costs ~0.2 s at start-up
 
         items: queue.Queue = queue.Queue()
-        done_marker = object()
+        finished = object()  # put once, after every task ended or the pool failed
 
         def drain(task):
-            try:
-                for item in task():
-                    items.put(item)
-            except BaseException as exc:  # re-raised in the caller's thread
-                items.put(exc)
-            finally:
-                items.put(done_marker)
+            for item in task():
+                items.put((None, item))
 
-        runner = threading.Thread(
-            target=lambda: Parallel(n_jobs=n_jobs, backend="threading")(delayed(drain)(t) for t in tasks),
-            daemon=True,
-        )
+        def run_all():
+            try:
+                Parallel(n_jobs=n_jobs, backend="threading")(delayed(drain)(t) for t in tasks)
+            except BaseException as exc:  # re-raised in the caller's thread
+                items.put((exc, None))
+            finally:
+                items.put((finished, None))
+
+        runner = threading.Thread(target=run_all, daemon=True)
         runner.start()
-        remaining = len(tasks)
-        while remaining:
-            item = items.get()
-            if item is done_marker:
-                remaining -= 1
-            elif isinstance(item, BaseException):
-                raise item
-            else:
-                yield item
+        while True:
+            error, item = items.get()
+            if error is finished:
+                break
+            if error is not None:
+                raise error
+            yield item
         runner.join()
 
     def close(self) -> None:
@@ -132,7 +134,8 @@ class DaskExecutor:
 
         futures = [self.client.submit(_run_task, task, pure=False) for task in tasks]
         try:
-            for future in as_completed(futures):
+            # Our client is not the default one (set_as_default=False): name its loop.
+            for future in as_completed(futures, loop=self.client.loop):
                 results = future.result()
                 future.release()
                 yield from results

@@ -1,11 +1,11 @@
 """Many emulated points on a CUDA GPU: device discovery and the host side of the GPU kernel.
 
-:func:`run_batch_cuda` is what :func:`pendsweep.batch.run_batch` calls for
+:func:`run_batch_cuda` is what :func:`pendsweep.backends._batch.run_batch` calls for
 ``device="cuda"``: it groups the points by steps per forcing period (so that
 the threads of a warp share a forcing table and reach their period ends
 together), builds one unit forcing table per distinct step count, launches
 :func:`pendsweep.kernels._cuda.emulated_kernel` one thread per point, and
-returns the same :class:`~pendsweep.batch.BatchRun` as the CPU path.
+returns the same :class:`~pendsweep.backends._batch.BatchRun` as the CPU path.
 
 The GPU dependencies are an extra (``pip install 'pendsweep[cuda]'``); with
 ``NUMBA_ENABLE_CUDASIM=1`` in the environment, numba's CUDA simulator runs
@@ -132,10 +132,10 @@ def run_batch_cuda(
 
     Returns
     -------
-    pendsweep.batch.BatchRun
+    pendsweep.backends._batch.BatchRun
         In the order of the inputs.
     """
-    from .batch import BatchRun
+    from .backends._batch import BatchRun
 
     require_cuda()
     cuda = import_cuda()

@@ -56,20 +56,27 @@ import functools
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterable
+from typing import Any, Callable
 
 import numpy as np
 import pandas as pd
 from scipy.optimize import brentq
 
 from .backends import make_backend
+from .classify import at_rest
 from .errors import ConfigError
-from .executors import Executor, LocalExecutor
+from .executors import Executor
 from .kernels import N_RECORD_COLUMNS
-from .kernels._layout import REC_ROTATIONS, REC_THETA_ABSMAX, REC_THETA_SEC, REC_THETADOT_SEC
+from .kernels._layout import (
+    REC_ROTATIONS,
+    REC_THETA_ABSMAX,
+    REC_THETA_SEC,
+    REC_THETADOT_SEC,
+)
 from .kernels._mathieu import mathieu_monodromy
 from .params import ENCODER_RESOLUTION, ModelParams, check_value
-from .results import ResultStore, run_metadata
+from .results import run_metadata
+from .scan import DEFAULT_MAX_WORK, Finished, UnitResult, Work, run_scan, sample_indices
 from .status import Status
 
 METHODS = ("analytic", "floquet", "simulate")
@@ -165,9 +172,10 @@ def kicked_records_many(
 
     The one place the simulate method touches a backend. The oscillator
     starts on its steady response, with the pendulum at rest, and runs
-    ``settle_periods`` (to settle any backend-specific states); then
-    ``theta += kick``. A backend with a batched kernel (``run_points``, see
-    :func:`pendsweep.batch.run_batch`) integrates all points at once.
+    ``settle_periods`` (to settle any backend-specific states); then the
+    pendulum is kicked (:meth:`~pendsweep.backends.Backend.kick`). Both
+    stages go through the backend's ``run_points``, so a batched backend
+    integrates all points at once.
 
     Returns
     -------
@@ -176,24 +184,16 @@ def kicked_records_many(
         the envelope is ``theta_absmax``, the section ``theta_sec, thetadot_sec``).
     status : list of Status
     """
-
-    def run(ps, states, transient, record):
-        if hasattr(backend, "run_points"):
-            return backend.run_points(ps, np.asarray(states), transient, record)
-        return [backend.run_point(q, s, transient, record) for q, s in zip(ps, states)]
-
     starts = []
     for q in params:
         Y = semi_trivial_response(q)
         starts.append(backend.initial_state(q, Y.imag, q.omega_e * Y.real, 0.0, 0.0))
-    settled = run(params, starts, settle_periods, 1)
+    settled = backend.run_points(params, np.asarray(starts), settle_periods, 1)
     records = np.full((len(params), periods, N_RECORD_COLUMNS), np.nan)
     status = [s.status for s in settled]
     ok = [i for i, s in enumerate(settled) if s.status is Status.OK]
-    kicked = [settled[i].state.copy() for i in ok]
-    for state in kicked:
-        state[2] += kick
-    for i, r in zip(ok, run([params[i] for i in ok], kicked, 0, periods) if ok else []):
+    kicked = np.asarray([backend.kick(settled[i].state, kick) for i in ok])
+    for i, r in zip(ok, backend.run_points([params[i] for i in ok], kicked, 0, periods) if ok else []):
         records[i], status[i] = r.records, r.status
     return records, status
 
@@ -233,12 +233,14 @@ def hopf_simulate(
     settle_periods: int = 10,
     tol: float = 0.1,
     alpha_max: float = 500.0,
+    rest_threshold: float = ENCODER_RESOLUTION,
 ) -> dict[str, Any]:
     """Bisection on alpha with the kick-and-growth-rate criterion (module docstring).
 
     Alpha is above the boundary when :func:`envelope_growth_rate` is
-    positive and the pendulum has not come to rest (final envelope above one
-    encoder pulse; Coulomb friction can stop it). The search starts at
+    positive and the pendulum has not come to rest (final period's envelope
+    not below ``rest_threshold`` [rad], one encoder pulse by default; see
+    :func:`pendsweep.classify.at_rest`; Coulomb friction can stop it). The search starts at
     1.25 x Eq. (12) (only as a first guess) and doubles until the pendulum
     grows; alpha = 0 is stable by definition. Returns a dict with
     ``alpha_H`` (bracket midpoint), ``bracket_lo/hi`` [N],
@@ -246,7 +248,8 @@ def hopf_simulate(
     ``runs`` and ``status``.
     """
     return hopf_simulate_many(
-        [params], backend, kick=kick, periods=periods, settle_periods=settle_periods, tol=tol, alpha_max=alpha_max
+        [params], backend, kick=kick, periods=periods, settle_periods=settle_periods, tol=tol, alpha_max=alpha_max,
+        rest_threshold=rest_threshold,
     )[0]
 
 
@@ -259,6 +262,7 @@ def hopf_simulate_many(
     settle_periods: int = 10,
     tol: float = 0.1,
     alpha_max: float = 500.0,
+    rest_threshold: float = ENCODER_RESOLUTION,
 ) -> list[dict[str, Any]]:
     """:func:`hopf_simulate` for many points, their bisections in lockstep.
 
@@ -278,8 +282,8 @@ def hopf_simulate_many(
             growth = math.nan
             if status[k] is Status.OK:
                 rate = envelope_growth_rate(records[k], params[i].omega_p, max(LINEAR_LIMIT, 4.0 * kick))
-                at_rest = records[k][-1, REC_THETA_ABSMAX] < ENCODER_RESOLUTION
-                growth = min(rate, 0.0) if at_rest else rate
+                resting = at_rest(records[k][-1, REC_THETA_ABSMAX], rest_threshold)
+                growth = min(rate, 0.0) if resting else rate
             try:
                 trials[i] = searches[i].send((growth, status[k]))
             except StopIteration as finished:
@@ -327,6 +331,8 @@ def _simulate_row(alpha, lo, hi, g_lo, g_hi, runs, status) -> dict[str, Any]:
 
 
 # -- scans ------------------------------------------------------------------------
+#: Monodromy evaluations of one Floquet row, about (grid from 1e-3 N by 1.2x to alpha_H, then brentq).
+FLOQUET_EVALUATIONS = 100
 #: Simulate rows per task when the backend has a batched kernel (bisections run in lockstep).
 SIMULATE_TASK_ROWS = 64
 
@@ -357,6 +363,9 @@ class HopfConfig:
         Give up (status ``not-found``) above this amplitude [N].
     floquet_steps : int
         RK4 steps per period of the monodromy integration.
+    rest_threshold : float
+        Simulate: the kicked pendulum is "at rest" when its last period's
+        max |theta| is below this [rad] (one encoder pulse by default).
     """
 
     omega_hat: tuple[float, ...]
@@ -371,6 +380,7 @@ class HopfConfig:
     tol: float = 0.1
     alpha_max: float = 500.0
     floquet_steps: int = 200
+    rest_threshold: float = ENCODER_RESOLUTION
 
     def __post_init__(self) -> None:
         for name in ("omega_hat", "masses", "methods"):
@@ -392,9 +402,13 @@ class HopfConfig:
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise ConfigError(f"{name} = {v!r} must be a finite number > 0")
+        if not (math.isfinite(self.rest_threshold) and self.rest_threshold >= 0):
+            raise ConfigError(f"rest_threshold = {self.rest_threshold!r} rad must be a finite number >= 0")
         backend = make_backend(self.backend, **self.backend_options)
-        for i in range(len(self.omega_hat)):
-            for j in range(len(self.masses)):
+        # The checks are monotone in fe and M (fe above 1/dt, M above M2, fe inside a filter
+        # band), so the extreme frequencies and masses stand for every point.
+        for i in {int(np.argmin(self.omega_hat)), int(np.argmax(self.omega_hat))}:
+            for j in {int(np.argmin(self.masses)), int(np.argmax(self.masses))}:
                 params = self.params_at(i, j)
                 semi_trivial_response(params)
                 if "simulate" in self.methods:
@@ -438,6 +452,7 @@ def hopf_simulate_rows(config: HopfConfig, points: list[tuple[int, int]], backen
     results = hopf_simulate_many(
         [config.params_at(i, j) for j, i in points], backend, kick=config.kick, periods=config.periods,
         settle_periods=config.settle_periods, tol=config.tol, alpha_max=config.alpha_max,
+        rest_threshold=config.rest_threshold,
     )
     return [
         _result_row(config, j, i, "simulate", dict(r, kick=config.kick, backend=config.backend))
@@ -464,6 +479,84 @@ def hopf_metadata(config: HopfConfig) -> dict[str, Any]:
     return run_metadata("hopf", config.to_dict(), backend=config.backend)
 
 
+def _unit_key(mass_point: int, point: int, method: str) -> str:
+    return f"{int(mass_point)}:{int(point)}:{method}"
+
+
+def _units(frames: list[pd.DataFrame]) -> list[UnitResult]:
+    return [UnitResult(_unit_key(*f.iloc[0][KEY_COLUMNS]), f) for f in frames]
+
+
+def _simulate_task(config: HopfConfig, points: list[tuple[int, int]], backend) -> list[UnitResult]:
+    return _units(hopf_simulate_rows(config, points, backend))
+
+
+def _point_task(config: HopfConfig, mass_point: int, point: int, method: str, backend) -> list[UnitResult]:
+    return _units([hopf_point(config, mass_point, point, method, backend=backend)])
+
+
+@dataclass
+class HopfScan:
+    """A Hopf scan as a :class:`pendsweep.scan.Scan` (units ``mass_point:point:method``)."""
+
+    config: HopfConfig
+    desc: str = "hopf"
+    row_columns: list[str] = field(default_factory=lambda: list(KEY_COLUMNS))
+
+    def __post_init__(self) -> None:
+        self.backend = make_backend(self.config.backend, **self.config.backend_options)
+
+    def metadata(self) -> dict[str, Any]:
+        return hopf_metadata(self.config)
+
+    def n_units(self) -> int:
+        return len(self.config.units())
+
+    def work(self) -> Work:
+        """Integration steps: simulate points x trial amplitudes x (settle + record) periods x steps.
+
+        Trial amplitudes are bounded by doubling from the first guess up to
+        ``alpha_max`` plus bisecting down to ``tol``; Floquet rows count
+        their monodromy steps (:data:`FLOQUET_EVALUATIONS` of ``floquet_steps`` each).
+        """
+        config = self.config
+        n_points = len(config.omega_hat) * len(config.masses)
+        runs = math.ceil(math.log2(config.alpha_max / config.tol)) + 2
+        sample = [config.params_at(i, j) for i in sample_indices(len(config.omega_hat))
+                  for j in sample_indices(len(config.masses), 11)]
+        steps = float(np.mean([self.backend.steps_per_period(q) for q in sample]))
+        simulate = n_points * runs if "simulate" in config.methods else 0
+        floquet = n_points * FLOQUET_EVALUATIONS * config.floquet_steps if "floquet" in config.methods else 0
+        return Work(simulate, config.settle_periods + config.periods, steps, other=floquet)
+
+    def tasks(self, finished: Finished, n_jobs: int) -> tuple[list[Callable], int]:
+        """Analytic and Floquet rows one task each; simulate rows of a batched backend in chunks.
+
+        The chunks of :data:`SIMULATE_TASK_ROWS` points are cut from all
+        simulate points in index order, and a chunk with any unfinished row
+        is rerun whole, so its lockstep bisections share every kernel call
+        with the same neighbours as in an uninterrupted run.
+        """
+        config, backend, done = self.config, self.backend, finished.keys
+        batched = [(j, i) for j, i, method in config.units() if method == "simulate" and backend.batched]
+        chunks = [batched[k : k + SIMULATE_TASK_ROWS] for k in range(0, len(batched), SIMULATE_TASK_ROWS)]
+        tasks: list[Callable] = [
+            functools.partial(_simulate_task, config, chunk, backend)
+            for chunk in chunks
+            if any(_unit_key(j, i, "simulate") not in done for j, i in chunk)
+        ]
+        in_batches = set(batched)
+        tasks += [
+            functools.partial(_point_task, config, j, i, method, backend)
+            for j, i, method in config.units()
+            if _unit_key(j, i, method) not in done and (method != "simulate" or (j, i) not in in_batches)
+        ]
+        return tasks, n_jobs
+
+    def order(self, df: pd.DataFrame) -> pd.DataFrame:
+        return _ordered(df, self.config)
+
+
 def run_hopf(
     config: HopfConfig,
     output: Path | None = None,
@@ -472,54 +565,23 @@ def run_hopf(
     progress: bool = False,
     overwrite: bool = False,
     executor: Executor | None = None,
+    max_work: float | None = DEFAULT_MAX_WORK,
 ) -> pd.DataFrame:
     """Run (or resume) a Hopf-boundary scan; one row per (M, omega_hat, method).
 
     ``executor`` (:mod:`pendsweep.executors`, default this process) runs the
-    tasks, so ``--executor dask`` spreads them over a cluster. Analytic and
-    Floquet rows are one task each; simulate rows on a backend with a batched
-    kernel go in tasks of :data:`SIMULATE_TASK_ROWS`, bisected in lockstep.
-
-    Persistence and resuming are those of :func:`pendsweep.sweep.run_sweep`
-    (:class:`~pendsweep.results.ResultStore`, keyed by ``mass_point, point,
-    method``). Returns the rows sorted by mass, omega_hat and method order.
+    tasks, so ``--executor dask`` spreads them over a cluster
+    (:meth:`HopfScan.tasks` says how rows are grouped into tasks).
+    Persistence, resuming and progress are those of every scan
+    (:func:`pendsweep.scan.run_scan`, keyed by ``mass_point, point,
+    method``). Scans whose work estimate (:meth:`HopfScan.work`) exceeds
+    ``max_work`` integration steps are refused (None: no limit). Returns the
+    rows sorted by mass, omega_hat and method order.
     """
-    from tqdm.auto import tqdm
-
-    store = ResultStore(output, hopf_metadata(config), KEY_COLUMNS, overwrite=overwrite) if output else None
-    done_df = store.done()[0] if store is not None else pd.DataFrame()
-    if store is not None and store.complete:
-        return done_df
-    done = set() if done_df.empty else set(zip(done_df.mass_point, done_df.point, done_df.method))
-    todo = [u for u in config.units() if u not in done]
-    frames = [done_df] if not done_df.empty else []
-    backend = make_backend(config.backend, **config.backend_options)
-    batched = [(j, i) for j, i, method in todo if method == "simulate" and hasattr(backend, "run_points")]
-    in_batches = set(batched)
-    tasks: list[Callable[[], Iterable[pd.DataFrame]]] = [
-        functools.partial(hopf_simulate_rows, config, batched[k : k + SIMULATE_TASK_ROWS], backend)
-        for k in range(0, len(batched), SIMULATE_TASK_ROWS)
-    ]
-    tasks += [
-        lambda u=u: [hopf_point(config, *u, backend=backend)]
-        for u in todo
-        if u[2] != "simulate" or (u[0], u[1]) not in in_batches
-    ]
-    bar = tqdm(total=len(config.units()), initial=len(done), unit="pt", disable=not progress, desc="hopf")
-    try:
-        for rows in (executor or LocalExecutor()).map_unordered(tasks, n_jobs):
-            frames.append(rows)
-            if store is not None:
-                j, i, method = rows.iloc[0][KEY_COLUMNS]
-                store.add(rows, f"{j}:{i}:{method}", [])
-            bar.update(1)
-    finally:
-        bar.close()
-        if store is not None:
-            store.flush()
-    if store is not None:
-        return _ordered(store.finalize(), config)
-    return _ordered(pd.concat(frames, ignore_index=True), config)
+    return run_scan(
+        HopfScan(config), output, n_jobs=n_jobs, progress=progress, overwrite=overwrite, executor=executor,
+        max_work=max_work,
+    )
 
 
 def _ordered(df: pd.DataFrame, config: HopfConfig) -> pd.DataFrame:

@@ -214,7 +214,7 @@ class ModelParams:
 
     def kernel_array(self) -> np.ndarray:
         """Contiguous float64 vector of the :data:`KERNEL_FIELDS` for the kernels."""
-        return kernel_vector(self.to_dict())
+        return np.array([getattr(self, name) for name in KERNEL_FIELDS], dtype=np.float64)
 
 
 #: The kernels' parameter vector, in order: the fields of :class:`ModelParams`

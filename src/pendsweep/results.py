@@ -1,24 +1,31 @@
-"""Crash-safe, resumable parquet results.
+"""Crash-safe, resumable, single-writer parquet results.
 
-A run writes its finished points into ``<output>.parts/`` as small parquet
-files, each written to a temporary name, fsynced and atomically renamed, so a
-killed process leaves only whole parts behind. Rerunning the same
-configuration reads the parts, skips the points they hold and goes on; when
-every point is done the parts are merged into ``<output>`` (again by atomic
-rename) and the folder is removed. Every file carries the fully resolved
-configuration as JSON in its parquet key-value metadata under ``pendsweep``.
+One process at a time writes an output: :class:`OutputLock` (``<output>.lock``,
+owner pid and host inside) is taken before any work, and a second process is
+refused at once. A run writes its finished units into ``<output>.parts/`` as
+small parquet files, each written to a temporary name, fsynced and atomically
+renamed, so a killed process leaves only whole parts behind; the run's
+configuration is stored once in ``<output>.parts/config.json`` and every part
+carries its hash. Rerunning the same configuration checks every part's hash,
+skips the units they hold and goes on; when every unit is done the parts are
+merged into ``<output>`` (again by atomic rename) and the folder is removed.
+The final file carries the fully resolved configuration as JSON in its
+parquet key-value metadata under ``pendsweep``.
 """
 
 from __future__ import annotations
 
+import fcntl
 import hashlib
 import json
+import logging
 import os
 import shutil
+import socket
 import tempfile
 import time
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Callable, Iterable
 
 import pandas as pd
 import pyarrow as pa
@@ -27,6 +34,14 @@ import pyarrow.parquet as pq
 from .errors import ResultsError
 
 METADATA_KEY = b"pendsweep"
+#: The run's metadata inside ``<output>.parts/`` (written once; parts carry only its hash).
+CONFIG_FILE = "config.json"
+
+_log = logging.getLogger("pendsweep")
+
+
+class OutputLocked(ResultsError):
+    """Another process is writing the same output (the message names it; exit status 2)."""
 
 # Read once at import: os.umask can only be read by setting it, which is not thread-safe.
 _UMASK = os.umask(0o022)
@@ -67,15 +82,15 @@ def check_writable(path: Path) -> None:
         raise ResultsError(f"cannot write results to {str(path)!r}: {exc.strerror or exc}") from None
 
 
-def atomic_write_table(table: pa.Table, path: Path) -> None:
-    """Write ``table`` to ``path`` so that readers see all of it or nothing."""
+def _atomic_write(path: Path, write: Callable[[Any], None]) -> None:
+    """Create ``path`` with ``write(file)`` so that readers see all of it or nothing."""
     path = Path(path)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
         # mkstemp creates 0600 files; results get the permissions of any normal file.
         os.fchmod(fd, 0o666 & ~_UMASK)
         with os.fdopen(fd, "wb") as fh:
-            pq.write_table(table, fh)
+            write(fh)
             fh.flush()
             os.fsync(fh.fileno())
         os.replace(tmp, path)
@@ -88,6 +103,11 @@ def atomic_write_table(table: pa.Table, path: Path) -> None:
         os.fsync(dir_fd)
     finally:
         os.close(dir_fd)
+
+
+def atomic_write_table(table: pa.Table, path: Path) -> None:
+    """Write ``table`` to ``path`` as parquet so that readers see all of it or nothing."""
+    _atomic_write(path, lambda fh: pq.write_table(table, fh))
 
 
 def with_metadata(df: pd.DataFrame, metadata: dict[str, Any]) -> pa.Table:
@@ -117,8 +137,114 @@ def read_results(path: Path) -> tuple[pd.DataFrame, dict[str, Any]]:
     return pq.read_table(path).to_pandas(), meta
 
 
+class OutputLock:
+    """Exclusive right to write one output, held from before any work until the run ends.
+
+    The lock is ``<output>.lock``: an advisory ``flock`` on it (released by
+    the kernel when its process dies, however it dies) plus the holder's
+    pid, host and start time written inside, so a refusal can name the
+    holder. A lock file whose flock is free is stale (its process died):
+    the next run takes it over and says so.
+
+    Raises
+    ------
+    OutputLocked
+        When another process (or another store in this process) holds it.
+    """
+
+    def __init__(self, output: Path) -> None:
+        self.path = Path(output).with_name(Path(output).name + ".lock")
+        self._fd: int | None = None
+        self.previous: dict[str, Any] | None = None  # the stale holder taken over, if any
+        while self._fd is None:
+            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o666 & ~_UMASK)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                held = True
+            except OSError as exc:  # a filesystem without flock: judge by the pid written inside
+                _log.warning(f"no file locking on {str(self.path.parent)!r} ({exc.strerror}); going by the pid inside")
+                held = _alive_elsewhere(_read_holder(fd))
+            else:
+                held = False
+            if held:
+                holder = _read_holder(fd)
+                os.close(fd)
+                raise OutputLocked(
+                    f"{str(output)!r} is being written by {_describe(holder)} (lock {str(self.path)!r}); "
+                    "wait for it to finish or choose another output path"
+                )
+            # The holder may have released and removed the file between our open and flock:
+            # only a lock on the file that is still at the path counts.
+            try:
+                same = os.fstat(fd).st_ino == os.stat(self.path).st_ino
+            except FileNotFoundError:
+                same = False
+            if not same:
+                os.close(fd)
+                continue
+            self.previous = _read_holder(fd)
+            me = {"pid": os.getpid(), "host": socket.gethostname(), "started": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, json.dumps(me).encode(), 0)
+            os.fsync(fd)
+            self._fd = fd
+        if self.previous:
+            _log.warning(f"took over the stale lock of {_describe(self.previous)} on {str(output)!r}")
+
+    def release(self) -> None:
+        """Remove the lock file and let go (idempotent)."""
+        if self._fd is None:
+            return
+        try:
+            os.unlink(self.path)
+        except FileNotFoundError:
+            pass
+        os.close(self._fd)
+        self._fd = None
+
+
+def _read_holder(fd: int) -> dict[str, Any]:
+    try:
+        holder = json.loads(os.pread(fd, 4096, 0).decode() or "{}")
+    except (UnicodeDecodeError, json.JSONDecodeError):
+        return {}
+    return holder if isinstance(holder, dict) else {}
+
+
+def _alive_elsewhere(holder: dict[str, Any]) -> bool:
+    """Whether a lock's holder may still run: another live pid on this host, or any pid on another host."""
+    pid = holder.get("pid")
+    if not isinstance(pid, int) or pid == os.getpid():
+        return False
+    if holder.get("host") != socket.gethostname():
+        return True  # cannot be checked from here
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def _describe(holder: dict[str, Any]) -> str:
+    if not holder:
+        return "another process"
+    return f"pid {holder.get('pid', '?')} on host {holder.get('host', '?')} (since {holder.get('started', '?')})"
+
+
 class ResultStore:
-    """Buffered, crash-safe writer for one run's results.
+    """Buffered, crash-safe, single-writer store for one run's results.
+
+    Layout while a run is unfinished: ``<output>.lock`` (:class:`OutputLock`),
+    ``<output>.parts/config.json`` (the run's metadata, written once) and
+    ``<output>.parts/part-NNNNNN-PID.parquet`` files, each carrying only the
+    configuration hash and the final states of its units. When every unit is
+    done, :meth:`finalize` merges the parts into ``<output>`` (metadata and
+    all final states included) and removes the folder; a run that finds a
+    finished ``<output>`` of its configuration removes any folder left by a
+    kill after the final rename.
 
     Parameters
     ----------
@@ -135,6 +261,14 @@ class ResultStore:
         Discard any previous file or parts at ``path``.
     flush_points, flush_seconds : int, float
         Persist the buffer after this many units or seconds, whichever first.
+
+    Raises
+    ------
+    OutputLocked
+        Another process is writing ``path``.
+    ResultsError
+        ``path`` is not writable, or holds (or its parts hold) results of a
+        different configuration.
     """
 
     def __init__(
@@ -148,6 +282,7 @@ class ResultStore:
     ) -> None:
         self.path = Path(path)
         self.metadata = metadata
+        self.config_hash = metadata["config_hash"]
         self.row_columns = list(row_columns)
         self.parts = self.path.with_name(self.path.name + ".parts")
         self.flush_points = flush_points
@@ -156,42 +291,75 @@ class ResultStore:
         self._buffer_states: dict[str, list[float]] = {}
         self._last_flush = time.monotonic()
         check_writable(self.path)
-        if overwrite:
-            if self.parts.exists():
-                shutil.rmtree(self.parts)
-            if self.path.exists():
-                self.path.unlink()
-        self._check_compatible()
-        self.parts.mkdir(exist_ok=True)
-        self._part_counter = len(list(self.parts.glob("part-*.parquet")))
+        self.lock = OutputLock(self.path)
+        try:
+            if overwrite:
+                shutil.rmtree(self.parts, ignore_errors=True)
+                if self.path.exists():
+                    self.path.unlink()
+            self._open()
+        except BaseException:
+            self.lock.release()
+            raise
 
-    # -- resume ---------------------------------------------------------------
-    def _check_compatible(self) -> None:
-        want = self.metadata["config_hash"]
-        candidates = [self.path] if self.path.exists() else []
-        candidates += sorted(self.parts.glob("part-*.parquet")) if self.parts.exists() else []
-        for f in candidates[:1]:
-            have = read_metadata(f).get("config_hash")
-            if have != want:
-                raise ResultsError(
-                    f"{str(f)!r} holds results of a different configuration; "
-                    "pass --overwrite to replace them or choose another output path"
-                )
+    def _open(self) -> None:
+        if self.path.exists():
+            self._check_hash(read_metadata(self.path).get("config_hash"), self.path)
+            shutil.rmtree(self.parts, ignore_errors=True)  # left by a kill after the final rename
+            return
+        config_file = self.parts / CONFIG_FILE
+        if config_file.exists():
+            try:
+                stored = json.loads(config_file.read_text())
+            except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+                _log.warning(f"{str(config_file)!r} is unreadable ({exc}); rewriting it (every part is checked on its own)")
+            else:
+                self._check_hash(stored.get("config_hash") if isinstance(stored, dict) else None, config_file)
+        self.parts.mkdir(exist_ok=True)
+        text = json.dumps(self.metadata, sort_keys=True).encode()
+        _atomic_write(config_file, lambda fh: fh.write(text))
+        indices = [int(f.name.split("-")[1]) for f in self.parts.glob("part-*.parquet")]
+        self._part_counter = max(indices, default=-1) + 1
+
+    def _check_hash(self, have: Any, where: Path) -> None:
+        if have != self.config_hash:
+            raise ResultsError(
+                f"{str(where)!r} holds results of a different configuration; "
+                "pass --overwrite to replace them or choose another output path"
+            )
 
     @property
     def complete(self) -> bool:
         """True when the final file exists (a previous run finished)."""
         return self.path.exists()
 
+    # -- resume ---------------------------------------------------------------
     def done(self) -> tuple[pd.DataFrame, dict[str, list[float]]]:
-        """Rows and final states already persisted (empty on a fresh start)."""
+        """Rows and final states (per unit key) already persisted (empty on a fresh start).
+
+        Every part's configuration hash is checked (a mismatch is an error).
+        A part that cannot be read is reported on the ``pendsweep`` logger,
+        moved aside (``*.corrupt``) and its units count as not done, so the
+        run recomputes them.
+        """
         if self.path.exists():
             df, meta = read_results(self.path)
             return df, meta.get("final_states", {})
         frames, states = [], {}
         for f in sorted(self.parts.glob("part-*.parquet")):
-            frames.append(pq.read_table(f).to_pandas())
-            states.update(read_metadata(f).get("final_states", {}))
+            try:
+                table = pq.read_table(f)
+                meta = read_metadata(f)
+                part_states = meta["final_states"]
+                if not isinstance(part_states, dict):
+                    raise ValueError("final_states is not a mapping")
+            except (OSError, ValueError, KeyError, TypeError, pa.ArrowException) as exc:
+                _log.warning(f"part {str(f)!r} is unreadable ({exc}); its units will be recomputed")
+                os.replace(f, f.with_name(f.name + ".corrupt"))
+                continue
+            self._check_hash(meta.get("config_hash"), f)
+            frames.append(table.to_pandas())
+            states.update(part_states)
         df = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
         if not df.empty:
             # A part may repeat a unit only if a crash hit between two renames; keep one copy.
@@ -211,7 +379,7 @@ class ResultStore:
         if not self._buffer:
             return
         df = pd.concat(self._buffer, ignore_index=True)
-        meta = dict(self.metadata, final_states=self._buffer_states)
+        meta = {"config_hash": self.config_hash, "final_states": self._buffer_states}
         part = self.parts / f"part-{self._part_counter:06d}-{os.getpid()}.parquet"
         atomic_write_table(with_metadata(df, meta), part)
         self._part_counter += 1
@@ -219,11 +387,22 @@ class ResultStore:
         self._last_flush = time.monotonic()
 
     def finalize(self) -> pd.DataFrame:
-        """Merge parts into the final file atomically and remove the parts."""
+        """Merge parts into the final file atomically, remove the parts and release the lock."""
         self.flush()
         df, states = self.done()
         df = df.sort_values(self.row_columns, kind="stable").reset_index(drop=True)
         meta = dict(self.metadata, final_states=states, completed=time.strftime("%Y-%m-%dT%H:%M:%S%z"))
         atomic_write_table(with_metadata(df, meta), self.path)
         shutil.rmtree(self.parts, ignore_errors=True)
+        self.close()
         return df
+
+    def close(self) -> None:
+        """Release the lock (idempotent). Unflushed units are dropped; parts stay for a later resume."""
+        self.lock.release()
+
+    def __enter__(self) -> "ResultStore":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()

@@ -32,22 +32,27 @@ import functools
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterable, Iterator
+from typing import Any, Callable, Iterator
 
 import numpy as np
 import pandas as pd
 
 from .backends import BACKENDS, PointRun, make_backend
-from .classify import classify_run, classify_runs
+from .basins import BackendMap, EmulatedMap, settle_runs
+from .classify import at_rest, classify_runs
 from .errors import ConfigError
-from .executors import Executor, LocalExecutor
+from .executors import Executor
 from .kernels import RECORD_COLUMNS
-from .kernels._layout import RECORD_INDEX
+from .kernels._layout import REC_THETA_ABSMAX, RECORD_INDEX
 from .params import ENCODER_RESOLUTION, PARAM_SPECS, ModelParams, check_value
-from .results import ResultStore, run_metadata
+from .results import run_metadata
+from .scan import DEFAULT_MAX_WORK, Finished, UnitResult, Work, run_scan, sample_indices
 from .status import Status
 
 MODES = ("continue", "fresh", "multistart")
+TRANSIENTS = ("fixed", "auto")
+#: Most values a sweep's range may hold (checked before the grid is built).
+MAX_VALUES = 1_000_000
 DIRECTIONS = ("up", "down", "both")
 KEY_COLUMNS = ["direction", "point", "start"]
 
@@ -57,6 +62,7 @@ def value_range(start: float, stop: float, step: float | None = None, points: in
 
     With ``step`` the values are ``start + i*step`` (no accumulated rounding),
     and ``stop`` is included when it lies on the grid (to 1e-9 of a step).
+    At most :data:`MAX_VALUES` values (``ConfigError`` before anything is allocated).
     """
     for name, v in (("from", start), ("to", stop)):
         if not math.isfinite(v):
@@ -66,6 +72,7 @@ def value_range(start: float, stop: float, step: float | None = None, points: in
     if points is not None:
         if int(points) < 1:
             raise ConfigError(f"points = {points!r} must be a positive integer")
+        _check_count(int(points), f"points = {int(points)}")
         return np.linspace(start, stop, int(points))
     if not math.isfinite(step) or step == 0:
         raise ConfigError(f"step = {step!r} must be finite and non-zero")
@@ -75,8 +82,17 @@ def value_range(start: float, stop: float, step: float | None = None, points: in
             f"step = {step:g} has the wrong sign for a range from {start:g} to {stop:g}; "
             f"use step {'>' if span > 0 else '<'} 0"
         )
-    count = int(math.floor(span / step + 1e-9)) + 1
+    steps = span / step + 1e-9  # inf for extreme values: refused by the count check
+    count = math.floor(steps) + 1 if math.isfinite(steps) else math.inf
+    _check_count(count, f"the range from {start:g} to {stop:g} by {step:g}")
     return start + step * np.arange(count)
+
+
+def _check_count(count: float, what: str) -> None:
+    if not count <= MAX_VALUES:
+        raise ConfigError(
+            f"{what} gives {count:,} values; a sweep takes at most {MAX_VALUES} (use a coarser step or fewer points)"
+        )
 
 
 @dataclass(frozen=True)
@@ -97,6 +113,15 @@ class SweepConfig:
         Registered backend name; ``backend_options`` are its options.
     transient_periods, record_periods : int
         Forcing periods discarded, then recorded, at every point (paper: 100, 20).
+    transient : {"fixed", "auto"}
+        ``fixed`` discards ``transient_periods`` (the paper's protocol).
+        ``auto`` integrates each unit in rounds of 25 periods until it has
+        settled (:func:`pendsweep.attractors.settling`: the section repeats
+        after n <= 8 periods to 1e-3, normalised, over 24 periods, or the
+        rotation number is steady) or ``max_transient_periods`` have passed,
+        then records; rows gain ``settled`` and ``transient_periods_used``.
+    max_transient_periods : int
+        Cap of the adaptive transient [forcing periods].
     initial : tuple of 4 floats
         ``(y [m], ydot [m/s], theta [rad], thetadot [rad/s])`` at the first point.
     kick : float
@@ -118,6 +143,8 @@ class SweepConfig:
     backend_options: dict[str, Any] = field(default_factory=dict)
     transient_periods: int = 100
     record_periods: int = 20
+    transient: str = "fixed"
+    max_transient_periods: int = 1000
     initial: tuple[float, float, float, float] = (0.0, 0.0, 0.1, 0.0)
     kick: float = 0.1
     rest_threshold: float = ENCODER_RESOLUTION
@@ -138,7 +165,9 @@ class SweepConfig:
             raise ConfigError(f"mode = {self.mode!r}; choose one of {', '.join(MODES)}")
         if self.direction not in DIRECTIONS:
             raise ConfigError(f"direction = {self.direction!r}; choose one of {', '.join(DIRECTIONS)}")
-        for name, lo in (("transient_periods", 0), ("record_periods", 1), ("starts", 1)):
+        if self.transient not in TRANSIENTS:
+            raise ConfigError(f"transient = {self.transient!r}; choose one of {', '.join(TRANSIENTS)}")
+        for name, lo in (("transient_periods", 0), ("record_periods", 1), ("starts", 1), ("max_transient_periods", 1)):
             v = getattr(self, name)
             if int(v) != v or v < lo:
                 raise ConfigError(f"{name} = {v!r} must be an integer >= {lo}")
@@ -148,8 +177,9 @@ class SweepConfig:
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 raise ConfigError(f"{name} = {v!r} rad must be a finite number >= 0")
-        for v in self.values:  # every point must be a valid model
-            self.params_at(v)
+        # Every value passed check_value, and ModelParams checks each field on its own,
+        # so the model at every point is valid when the base model is.
+        self.params_at(vals[0])
         self.make_backend()
 
     # -- derived ----------------------------------------------------------------
@@ -239,6 +269,8 @@ class PointResult:
     run: PointRun
     kicked: bool
     motion: str = ""
+    settled: bool = False
+    transient_used: int = 0
 
     @property
     def key(self) -> str:
@@ -262,10 +294,50 @@ def result_rows(config: SweepConfig, r: PointResult) -> pd.DataFrame:
     columns["kicked"] = np.full(n, r.kicked)
     columns["status"] = np.full(n, r.run.status.value, dtype=object)
     columns["motion"] = np.full(n, r.motion, dtype=object)
+    if config.transient == "auto":
+        columns["settled"] = np.full(n, r.settled)
+        columns["transient_periods_used"] = np.full(n, r.transient_used, dtype=np.int64)
     return pd.DataFrame(columns)
 
 
-def _continue_branch(config, backend, direction, indices, resume) -> Iterator[PointResult]:
+def run_units(config: SweepConfig, backend, params: list, states: np.ndarray, threads=None, one_by_one=False):
+    """Transient and record of units: ``(runs, settled, transient periods used)``.
+
+    ``one_by_one`` runs each unit with the backend's ``run_point`` (continue
+    mode's scalar path) instead of ``run_points``. With ``transient =
+    "auto"`` every unit is integrated in rounds until it settles (see
+    :class:`SweepConfig`), on the batched kernel when the backend has one,
+    then its record is taken from there.
+    """
+    n = len(params)
+    if config.transient == "fixed":
+        if one_by_one:
+            runs = [backend.run_point(q, x, config.transient_periods, config.record_periods) for q, x in zip(params, states)]
+        else:
+            runs = backend.run_points(params, states, config.transient_periods, config.record_periods, threads)
+        return runs, np.zeros(n, dtype=bool), np.full(n, config.transient_periods)
+    if backend.batched and not one_by_one:
+        system = EmulatedMap(tuple(params), dt=backend.dt, signum=backend.signum, threads=threads)
+    else:  # units of one call share their parameters (one point, or one point's starts)
+        system = BackendMap(backend, params[0], entropy=(config.seed,), workers=1)
+    settled = settle_runs(system, np.asarray(states, dtype=np.float64), config.max_transient_periods,
+                          rest_threshold=config.rest_threshold)  # fmt: skip
+    if one_by_one:
+        runs = [backend.run_point(q, x, 0, config.record_periods) for q, x in zip(params, settled.states)]
+    else:
+        runs = backend.run_points(params, settled.states, 0, config.record_periods, threads)
+    return runs, settled.settled, settled.periods_done
+
+
+def _unit(config: SweepConfig, r: PointResult) -> UnitResult:
+    return UnitResult(r.key, result_rows(config, r), r.run.state.tolist())
+
+
+def _classified(config, backend, params, run) -> str:
+    return classify_runs(backend, [params], [run], config.rest_threshold)[0].label
+
+
+def _continue_branch(config, backend, direction, indices, resume) -> Iterator[UnitResult]:
     """Walk one branch, carrying the state; ``resume`` describes finished units."""
     state = None  # None: start (or restart) from config.initial
     kick_next = False
@@ -281,32 +353,18 @@ def _continue_branch(config, backend, direction, indices, resume) -> Iterator[Po
         if state is None:
             state = backend.initial_state(params, *config.initial)
         elif kick_next:
-            state = state.copy()
-            state[2] += config.kick
+            state = backend.kick(state, config.kick)
             kicked = True
-        run = backend.run_point(params, state, config.transient_periods, config.record_periods)
-        yield PointResult(direction, i, 0, config.values[i], run, kicked, classify_run(backend, params, run).label)
+        (run,), settled, used = run_units(config, backend, [params], np.array([state]), one_by_one=True)
+        motion = _classified(config, backend, params, run)
+        yield _unit(config, PointResult(direction, i, 0, config.values[i], run, kicked, motion, bool(settled[0]), int(used[0])))
         ok = run.status is Status.OK
         state = run.state if ok else None
-        kick_next = ok and float(np.nanmax(run.records[:, 1])) < config.rest_threshold
+        kick_next = ok and at_rest(run.records[:, REC_THETA_ABSMAX], config.rest_threshold)
 
 
-def _independent_point(config, backend, i, starts_done) -> list[PointResult]:
-    params = config.params_at(config.values[i])
-    initials = multistart_initials(config, i) if config.mode == "multistart" else np.array([config.initial])
-    out = []
-    for s, ic in enumerate(initials):
-        if s in starts_done:
-            continue
-        run = backend.run_point(
-            params, backend.initial_state(params, *ic), config.transient_periods, config.record_periods
-        )
-        out.append(PointResult("none", i, s, config.values[i], run, False, classify_run(backend, params, run).label))
-    return out
-
-
-def _batched_units(config, backend, units, threads) -> list[PointResult]:
-    """Independent ``(point, start)`` units in one call of the backend's batched kernel."""
+def _independent_units(config, backend, units, threads) -> list[UnitResult]:
+    """Independent ``(point, start)`` units in one :meth:`~pendsweep.backends.Backend.run_points` call."""
     params, states, initials = [], [], {}
     for i, s in units:
         params.append(config.params_at(config.values[i]))
@@ -314,40 +372,89 @@ def _batched_units(config, backend, units, threads) -> list[PointResult]:
             initials[i] = multistart_initials(config, i)
         ic = initials[i][s] if config.mode == "multistart" else config.initial
         states.append(backend.initial_state(params[-1], *ic))
-    runs = backend.run_points(params, np.array(states), config.transient_periods, config.record_periods, threads)
-    motions = classify_runs(backend, params, runs)
+    runs, settled, used = run_units(config, backend, params, np.array(states), threads)
+    motions = classify_runs(backend, params, runs, config.rest_threshold)
     return [
-        PointResult("none", i, s, config.values[i], run, False, motion.label)
-        for (i, s), run, motion in zip(units, runs, motions)
+        _unit(config, PointResult("none", i, s, config.values[i], run, False, motion.label, bool(ok), int(n)))
+        for (i, s), run, motion, ok, n in zip(units, runs, motions, settled, used)
     ]
 
 
-def _independent_tasks(config, backend, resume, n_jobs, task_points) -> tuple[list[Callable], int]:
+def _independent_tasks(config, backend, finished: set[str], n_jobs, task_points) -> tuple[list[Callable], int]:
     """Tasks for the fresh/multistart units not yet done, and the local thread count for them.
 
-    A backend with a batched kernel (``run_points``) gets chunks of
-    ``task_points`` units, each running on all ``n_jobs`` cores; otherwise
-    there is one task per point, ``n_jobs`` at a time.
+    A batched backend (``backend.batched``) gets chunks of ``task_points``
+    units cut from the full unit list in index order, each running on all
+    ``n_jobs`` cores; a chunk with any unfinished unit is rerun whole, so a
+    resumed unit is integrated beside the same neighbours as in an
+    uninterrupted run. Otherwise there is one task per point (its
+    unfinished starts), ``n_jobs`` at a time.
     """
     n_starts = config.starts if config.mode == "multistart" else 1
-    if hasattr(backend, "run_points"):
-        units = [
-            (i, s) for i in range(len(config.values)) for s in range(n_starts) if unit_key("none", i, s) not in resume
-        ]
+    units = [(i, s) for i in range(len(config.values)) for s in range(n_starts)]
+    if backend.batched:
         threads = None if n_jobs < 1 else n_jobs
-        task_points = max(task_points, getattr(backend, "min_batch_points", 1))
+        task_points = max(task_points, backend.min_batch_points)
         chunks = [units[k : k + task_points] for k in range(0, len(units), task_points)]
-        return [functools.partial(_batched_units, config, backend, c, threads) for c in chunks], 1
+        todo = [c for c in chunks if any(unit_key("none", i, s) not in finished for i, s in c)]
+        return [functools.partial(_independent_units, config, backend, c, threads) for c in todo], 1
     tasks = []
     for i in range(len(config.values)):
-        starts_done = {s for s in range(n_starts) if unit_key("none", i, s) in resume}
-        if len(starts_done) < n_starts:
-            tasks.append(functools.partial(_independent_point, config, backend, i, starts_done))
+        missing = [(i, s) for s in range(n_starts) if unit_key("none", i, s) not in finished]
+        if missing:
+            tasks.append(functools.partial(_independent_units, config, backend, missing, None))
     return tasks, n_jobs
+
+
+def sweep_work(config: SweepConfig, backend) -> Work:
+    """Integration steps of a sweep: units x (transient + record) periods x steps per period.
+
+    Steps per period are averaged over up to 101 values spread over the range
+    (they change only when ``fe`` is swept). Classification may add up to
+    about 3x for points that are not periodic (extended record, Lyapunov pair).
+    """
+    steps = [backend.steps_per_period(config.params_at(config.values[i])) for i in sample_indices(len(config.values))]
+    transient = config.max_transient_periods if config.transient == "auto" else config.transient_periods
+    return Work(config.n_units, transient + config.record_periods, float(np.mean(steps)))
 
 
 def sweep_metadata(config: SweepConfig) -> dict[str, Any]:
     return run_metadata("sweep", config.to_dict(), backend=config.backend, seed=config.seed)
+
+
+@dataclass
+class SweepScan:
+    """A sweep as a :class:`pendsweep.scan.Scan` (units ``direction:point:start``)."""
+
+    config: SweepConfig
+    task_points: int = 256
+    row_columns: list[str] = field(default_factory=lambda: KEY_COLUMNS + ["period"])
+
+    def __post_init__(self) -> None:
+        self.backend = self.config.make_backend()
+        self.desc = self.config.parameter
+
+    def metadata(self) -> dict[str, Any]:
+        return sweep_metadata(self.config)
+
+    def n_units(self) -> int:
+        return self.config.n_units
+
+    def work(self) -> Work:
+        return sweep_work(self.config, self.backend)
+
+    def tasks(self, finished: Finished, n_jobs: int) -> tuple[list[Callable], int]:
+        config = self.config
+        if config.mode != "continue":
+            return _independent_tasks(config, self.backend, finished.keys, n_jobs, self.task_points)
+        resume = _resume_info(finished.rows, finished.states, config.rest_threshold)
+        return [
+            functools.partial(_continue_branch, config, self.backend, direction, indices, resume)
+            for direction, indices in config.branches()
+        ], n_jobs
+
+    def order(self, df: pd.DataFrame) -> pd.DataFrame:
+        return df.sort_values(self.row_columns, kind="stable").reset_index(drop=True)
 
 
 def run_sweep(
@@ -359,6 +466,7 @@ def run_sweep(
     overwrite: bool = False,
     executor: Executor | None = None,
     task_points: int = 256,
+    max_work: float | None = DEFAULT_MAX_WORK,
 ) -> pd.DataFrame:
     """Run (or resume) a sweep and return its long-form results.
 
@@ -377,8 +485,11 @@ def run_sweep(
         Discard earlier results at ``output`` instead of resuming.
     executor : Executor, optional
         Where tasks run (:mod:`pendsweep.executors`; default: this process).
-        Fresh and multistart points on a backend with a batched kernel go in
-        tasks of ``task_points`` points; a continue branch is one task.
+        Fresh and multistart points on a batched backend go in tasks of
+        ``task_points`` points; a continue branch is one task.
+    max_work : float or None
+        Refuse the sweep (``ConfigError``) when its estimate (:func:`sweep_work`)
+        exceeds this many integration steps; None: no limit.
 
     Returns
     -------
@@ -386,44 +497,10 @@ def run_sweep(
         One row per (direction, point, start, period), sorted; columns are
         documented in the README.
     """
-    from tqdm.auto import tqdm
-
-    backend = config.make_backend()
-    metadata = sweep_metadata(config)
-    store = ResultStore(output, metadata, KEY_COLUMNS + ["period"], overwrite=overwrite) if output is not None else None
-    done_df, done_states = store.done() if store is not None else (pd.DataFrame(), {})
-    if store is not None and store.complete:
-        return done_df
-
-    frames = [done_df] if not done_df.empty else []
-    resume = _resume_info(done_df, done_states, config.rest_threshold)
-    bar = tqdm(total=config.n_units, initial=len(resume), unit="pt", disable=not progress, desc=config.parameter)
-
-    tasks: list[Callable[[], Iterable[PointResult]]] = []
-    local_jobs = n_jobs
-    if config.mode == "continue":
-        for direction, indices in config.branches():
-            tasks.append(functools.partial(_continue_branch, config, backend, direction, indices, resume))
-    else:
-        tasks, local_jobs = _independent_tasks(config, backend, resume, n_jobs, task_points)
-
-    executor = executor or LocalExecutor()
-    try:
-        for item in executor.map_unordered(tasks, local_jobs):
-            for r in item if isinstance(item, list) else [item]:
-                rows = result_rows(config, r)
-                frames.append(rows)
-                if store is not None:
-                    store.add(rows, r.key, r.run.state.tolist())
-                bar.update(1)
-    finally:
-        bar.close()
-        if store is not None:
-            store.flush()
-    if store is not None:
-        return store.finalize()
-    df = pd.concat(frames, ignore_index=True)
-    return df.sort_values(KEY_COLUMNS + ["period"], kind="stable").reset_index(drop=True)
+    return run_scan(
+        SweepScan(config, task_points), output, n_jobs=n_jobs, progress=progress, overwrite=overwrite,
+        executor=executor, max_work=max_work,
+    )
 
 
 def _resume_info(done_df: pd.DataFrame, states: dict[str, list[float]], threshold: float) -> dict[str, dict]:
@@ -437,6 +514,6 @@ def _resume_info(done_df: pd.DataFrame, states: dict[str, list[float]], threshol
         info[key] = {
             "state": states.get(key),
             "ok": ok and states.get(key) is not None,
-            "at_rest": ok and float(g["theta_absmax"].max()) < threshold,
+            "at_rest": ok and at_rest(g["theta_absmax"].to_numpy(), threshold),
         }
     return info

@@ -9,22 +9,38 @@ backend must:
    units in their docstrings); :meth:`validate` raises ``ConfigError`` for bad
    values. ``make_backend(name, **options)`` builds one and rejects unknown
    option names.
-3. Use a state vector (contiguous float64) whose first four entries are the
-   emulated-equivalent coordinates ``(y, ydot, theta, thetadot)``; later
-   entries are the backend's own (actuator, filter, predictor history ...).
-   The sweep planner perturbs the pendulum through ``state[2]``.
-4. Implement :meth:`run_point`, returning a :class:`PointRun` whose records
+3. Own its state vector (contiguous float64). Callers never index it: they
+   build one with :meth:`initial_state`, perturb the pendulum with
+   :meth:`kick` (which returns a new state) and read the Poincare
+   coordinates ``(y, ydot, theta, thetadot)`` with :meth:`section`.
+4. Say how many integration steps one forcing period takes
+   (:meth:`steps_per_period`; scans estimate their work from it).
+5. Implement :meth:`run_point`, returning a :class:`PointRun` whose records
    follow :data:`pendsweep.kernels.RECORD_COLUMNS`, and :meth:`trace`, a
    time-series :class:`pandas.DataFrame` with at least ``t, y, ydot, theta,
    thetadot``.
-5. Never raise on a diverging point: report it through ``PointRun.status``.
+6. Implement :meth:`run_points` for many independent points. ``batched``
+   declares whether it is a vectorised kernel (``True``: scans hand it
+   chunks of many points and give each chunk all cores) or the documented
+   fallback of :class:`BackendBase`, one :meth:`run_point` after another
+   (``False``: scans run one point per task, several tasks in parallel).
+   A batched backend also provides ``evidence_many(params, finals, firsts,
+   scales, **schedule)``, the motion classifier's record extensions and
+   Lyapunov twins in one launch (see
+   :meth:`pendsweep.backends.EmulatedBackend.evidence_many`); for the others
+   the classifier re-simulates point by point with :meth:`run_point`.
+7. Never raise on a diverging point: report it through ``PointRun.status``.
+
+:class:`BackendBase` supplies the defaults (a state whose first four
+entries are ``(y, ydot, theta, thetadot)``, the per-point fallback of
+:meth:`run_points`, steps from a ``dt`` field, options from the fields).
 """
 
 from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import Any, ClassVar, Protocol, runtime_checkable
+from typing import Any, ClassVar, Protocol, Sequence, runtime_checkable
 
 import numpy as np
 import pandas as pd
@@ -46,13 +62,29 @@ class PointRun:
 
 @runtime_checkable
 class Backend(Protocol):
+    """What sweeps, Hopf scans and the classifier may ask of a backend (module docstring)."""
+
     name: ClassVar[str]
+    #: True when :meth:`run_points` is a vectorised kernel worth whole chunks of points
+    #: (and ``evidence_many`` exists, module docstring item 6).
+    batched: ClassVar[bool]
+
+    @property
+    def min_batch_points(self) -> int:
+        """Fewest points worth one :meth:`run_points` call (scans make tasks at least this big)."""
+        ...
 
     def validate(self, params: ModelParams) -> None: ...
+
+    def steps_per_period(self, params: ModelParams) -> int: ...
 
     def initial_state(
         self, params: ModelParams, y: float, ydot: float, theta: float, thetadot: float
     ) -> np.ndarray: ...
+
+    def kick(self, state: np.ndarray, dtheta: float) -> np.ndarray: ...
+
+    def section(self, state: np.ndarray) -> np.ndarray: ...
 
     def run_point(
         self,
@@ -62,11 +94,67 @@ class Backend(Protocol):
         record_periods: int,
     ) -> PointRun: ...
 
+    def run_points(
+        self,
+        params: Sequence[ModelParams],
+        states: np.ndarray,
+        transient_periods: int,
+        record_periods: int,
+        threads: int | None = None,
+    ) -> list[PointRun]: ...
+
     def trace(
         self, params: ModelParams, state: np.ndarray, periods: int, stride: int = 1
     ) -> pd.DataFrame: ...
 
     def options(self) -> dict[str, Any]: ...
+
+
+#: Index of theta in :class:`BackendBase` states (after y, ydot).
+_THETA = 2
+
+
+class BackendBase:
+    """Defaults of the contract for backends whose state starts ``(y, ydot, theta, thetadot)``.
+
+    A backend subclasses it (as a frozen dataclass with a ``dt`` field) and
+    overrides what differs: a batched kernel overrides :meth:`run_points` and
+    sets ``batched = True``.
+    """
+
+    batched: ClassVar[bool] = False
+
+    @property
+    def min_batch_points(self) -> int:
+        """Fewest points worth one :meth:`run_points` call: 1 unless a device needs many."""
+        return 1
+
+    def steps_per_period(self, params: ModelParams) -> int:
+        """Whole steps per forcing period closest to the backend's ``dt`` [s]."""
+        return steps_per_period(params.fe, self.dt)  # type: ignore[attr-defined]
+
+    def options(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)  # type: ignore[call-overload]
+
+    def kick(self, state: np.ndarray, dtheta: float) -> np.ndarray:
+        """A copy of ``state`` with the pendulum angle moved by ``dtheta`` [rad]; nothing else changes."""
+        kicked = np.array(state, dtype=np.float64, copy=True)
+        kicked[_THETA] += dtheta
+        return kicked
+
+    def section(self, state: np.ndarray) -> np.ndarray:
+        """Poincare coordinates ``(y [m], ydot [m/s], theta [rad], thetadot [rad/s])``, float64[4]."""
+        return np.array(state[:4], dtype=np.float64, copy=True)
+
+    def run_points(self, params, states, transient_periods, record_periods, threads=None) -> list[PointRun]:
+        """The fallback for many points: :meth:`run_point` on each in turn (``threads`` unused).
+
+        ``params`` is a sequence of n :class:`ModelParams`, ``states`` n states.
+        """
+        return [
+            self.run_point(q, s, transient_periods, record_periods)  # type: ignore[attr-defined]
+            for q, s in zip(params, states)
+        ]
 
 
 BACKENDS: dict[str, type] = {}

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
-from typing import Any, ClassVar
+from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 import pandas as pd
@@ -14,13 +14,14 @@ from ..gpu import GPU_BATCH_POINTS, check_device
 from ..kernels import N_RECORD_COLUMNS, emulated_periods, emulated_trace
 from ..params import ModelParams
 from ..status import Status
-from ._base import PointRun, register, steps_per_period
+from ._base import BackendBase, PointRun, register
+from ._batch import batched_evidence, run_batch
 
 
 @register
 @dataclass(frozen=True)
-class EmulatedBackend:
-    """Fixed-step RK4 of the complete system.
+class EmulatedBackend(BackendBase):
+    """Fixed-step RK4 of the complete system, with a batched kernel for many points.
 
     Attributes
     ----------
@@ -43,6 +44,7 @@ class EmulatedBackend:
     """
 
     name: ClassVar[str] = "emulated"
+    batched: ClassVar[bool] = True
     dt: float = 1e-3
     signum: str = "step"
     device: str = "cpu"
@@ -61,16 +63,10 @@ class EmulatedBackend:
                 f"forcing period 1/fe = {1 / params.fe:g} s is shorter than dt = {self.dt:g} s"
             )
 
-    def options(self) -> dict[str, Any]:
-        return asdict(self)
-
     @property
     def min_batch_points(self) -> int:
         """Fewest points worth one :meth:`run_points` call: a GPU needs ~1e5 threads to be busy."""
         return GPU_BATCH_POINTS if self.device == "cuda" else 1
-
-    def steps_per_period(self, params: ModelParams) -> int:
-        return steps_per_period(params.fe, self.dt)
 
     def initial_state(self, params, y, ydot, theta, thetadot) -> np.ndarray:
         return np.array([y, ydot, theta, thetadot], dtype=np.float64)
@@ -99,8 +95,6 @@ class EmulatedBackend:
         :meth:`run_point` would (to about 1e-12 relative on periodic motion).
         ``threads`` limits the numba threads (default: all).
         """
-        from ..batch import run_batch
-
         batch = run_batch(
             params, states, transient_periods, record_periods, dt=self.dt, signum=self.signum, threads=threads,
             device=self.device, precision=self.precision,
@@ -113,11 +107,9 @@ class EmulatedBackend:
     def evidence_many(self, params, finals, firsts, scales, **schedule) -> list[tuple[np.ndarray, np.ndarray]]:
         """The motion classifier's evidence for many points in one batched launch.
 
-        See :func:`pendsweep.batch.batched_evidence`; ``schedule`` holds its
+        See :func:`pendsweep.backends._batch.batched_evidence`; ``schedule`` holds its
         keyword arguments (periods, twin separation, rest threshold).
         """
-        from ..batch import batched_evidence
-
         return batched_evidence(params, finals, firsts, scales, dt=self.dt, signum=self.signum, **schedule)
 
     def trace(self, params, state, periods, stride=1) -> pd.DataFrame:

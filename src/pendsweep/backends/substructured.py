@@ -40,8 +40,8 @@ the thread scheduling and a continued state never replays the same noise.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
-from typing import Any, ClassVar
+from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 import pandas as pd
@@ -72,7 +72,7 @@ from ..loop import (
 )
 from ..params import ENCODER_RESOLUTION, ModelParams
 from ..status import Status
-from ._base import PointRun, register, steps_per_period
+from ._base import BackendBase, PointRun, register
 
 #: Instability test: rms of x'' at the controller rate above this [m/s^2] ...
 HF_ACCEL_FLOOR = 2.0
@@ -82,7 +82,7 @@ HF_RATIO = 10.0
 
 @register
 @dataclass(frozen=True)
-class SubstructuredBackend:
+class SubstructuredBackend(BackendBase):
     """Simulated real-time substructuring test of the pendulum-oscillator.
 
     The numerical model is ``M1 y*'' + C1 y*' + K y* = F_e - F_s`` with
@@ -222,12 +222,6 @@ class SubstructuredBackend:
                 f"forcing frequency fe = {params.fe:g} Hz lies outside the force filter's band "
                 f"[{self.filter_low:g}, {self.filter_high:g}] Hz"
             )
-
-    def options(self) -> dict[str, Any]:
-        return asdict(self)
-
-    def steps_per_period(self, params: ModelParams) -> int:
-        return steps_per_period(params.fe, self.dt)
 
     def step(self, params: ModelParams) -> float:
         """Controller step actually used [s]."""

@@ -21,7 +21,7 @@ import time
 
 import numpy as np
 
-from ..batch import run_batch
+from ..backends._batch import run_batch
 from ..gpu import cuda_unavailable_reason, device_name
 from ..params import FIG11A
 from . import benchmark, best_of

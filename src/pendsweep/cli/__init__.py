@@ -7,6 +7,7 @@ become a one-line message, never a traceback: exit status 2 for bad input,
 """
 
 from . import (
+    _basins,  # noqa: F401,E402  (registers basins and map)
     _continue,  # noqa: F401,E402  (registers continue)
     _data,  # noqa: F401,E402  (registers diagnose, fit-damping, synth)
     _hopf,  # noqa: F401,E402  (registers the hopf command)

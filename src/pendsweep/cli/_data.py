@@ -30,7 +30,7 @@ def _pairs(items: tuple[str, ...], what: str) -> dict[str, float]:
 
 
 @main.command()
-@click.argument("data", type=PATH)
+@click.argument("data", nargs=-1, required=True, type=PATH)
 @click.option("--json", "json_out", type=PATH, help="Write the verdict JSON here (.json).")
 @click.option(
     "--report",
@@ -45,11 +45,11 @@ def _pairs(items: tuple[str, ...], what: str) -> dict[str, float]:
     help="Short-horizon segment length for forced and substructured records [s] (default 4).",
 )
 @click.option(
-    "--train-fraction",
-    type=FiniteFloat(0.05, 1.0),
-    default=0.6,
+    "--folds",
+    type=click.IntRange(2, 20),
+    default=5,
     show_default=True,
-    help="Leading fraction of the record used for fitting [-], 0.05 to 1.",
+    help="Cross-validation folds of one record [-] (several records: leave one record out).",
 )
 @click.option("--cause", "causes", multiple=True, help="Restrict the candidates to these causes (repeatable).")
 @click.option(
@@ -64,13 +64,16 @@ def _pairs(items: tuple[str, ...], what: str) -> dict[str, float]:
     "--model",
     "model_file",
     type=PATH,
-    help="JSON of ModelParams fields replacing the record's nominal model (e.g. from fit-damping --params-out).",
+    help="JSON of ModelParams fields replacing the records' nominal model (e.g. from fit-damping --params-out).",
 )
-def diagnose(data, json_out, report_dir, horizon, train_fraction, causes, jobs, model_file):
-    """Compare a measured record with its nominal model and name the missing effect.
+def diagnose(data, json_out, report_dir, horizon, folds, causes, jobs, model_file):
+    """Compare measured records with their nominal model and name the missing effect.
 
-    DATA is a format-v1 record (.csv with a .json sidecar, or .parquet) or a
-    raw free-swing .txt file. Prints the verdict JSON.
+    DATA is one or more format-v1 records (.csv with a .json sidecar, or
+    .parquet) or raw free-swing .txt files. Several records are taken as one
+    rig: physical parameters are fitted jointly (initial states and
+    measurement-chain parameters per record) and validated by leave-one-record-out
+    prediction. Prints the verdict JSON.
     """
     from ..data import read_record
     from ..diagnose import Replay
@@ -78,20 +81,22 @@ def diagnose(data, json_out, report_dir, horizon, train_fraction, causes, jobs, 
     from ..diagnose.report import write_report
     from ._sweep import load_model_file
 
-    check_input(data, "record")
+    for path in data:
+        check_input(path, "record")
     check_output(json_out, "--json", (".json",))
     check_output_dir(report_dir, "--report")
     model = load_model_file(model_file) if model_file is not None else None
-    record = read_record(data)
+    records = [read_record(p) for p in data]
     if model is not None:
-        record.params = record.params.replace(**model)
-    diag = run(Replay(record, horizon, train_fraction), list(causes) or None, n_jobs=jobs)
+        for record in records:
+            record.params = record.params.replace(**model)
+    diag = run([Replay(r, horizon, folds) for r in records], list(causes) or None, n_jobs=jobs)
     text = json.dumps(diag.to_json(), indent=1)
     if json_out:
         json_out.parent.mkdir(parents=True, exist_ok=True)
         json_out.write_text(text + "\n")
     if report_dir:
-        write_report(diag, report_dir, str(data))
+        write_report(diag, report_dir, ", ".join(map(str, data)))
     click.echo(text)
 
 
@@ -247,11 +252,12 @@ def fit_damping(data, json_out, params_out, mass, skip, plot):
         "fitted_on": str(data[0]),
         "physics": fit.physics,
         "stderr": fit.stderr,
-        "offset_rad": fit.nuisance["theta0"],
+        "offset_rad": fit.nuisance["theta_offset"],
         "stages": fit.stages,
         "envelope_error": fit.envelope_error,
         "predictions": {
-            p: {"envelope_error": v["envelope_error"], "offset_rad": v["nuisance"]["theta0"]} for p, v in preds.items()
+            p: {"envelope_error": v["envelope_error"], "offset_rad": v["nuisance"]["theta_offset"]}
+            for p, v in preds.items()
         },
     }
     click.echo(f"fitted on {data[0]} ({fit.iterations} sensitivity iterations)")

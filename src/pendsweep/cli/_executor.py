@@ -1,4 +1,4 @@
-"""``--executor`` and ``--scheduler``: the options every scan command shares."""
+"""Options every scan command shares: ``--executor``, ``--scheduler``, ``--max-work``, ``--yes``."""
 
 from __future__ import annotations
 
@@ -7,6 +7,7 @@ from typing import Callable
 import click
 
 from ..executors import EXECUTORS, SCHEDULER_ENV
+from ..scan import DEFAULT_MAX_WORK
 
 
 def executor_options() -> list[Callable]:
@@ -22,6 +23,23 @@ def executor_options() -> list[Callable]:
             help=f"Dask scheduler for --executor dask, e.g. tcp://10.0.0.5:8786 (default: ${SCHEDULER_ENV}).",
         ),
     ]
+
+
+def work_options() -> list[Callable]:
+    """click options ``--max-work STEPS`` and ``--yes``: the limit on a scan's work estimate."""
+    return [
+        click.option(
+            "--max-work", type=click.FloatRange(min=0, min_open=True), default=DEFAULT_MAX_WORK, show_default=True,
+            metavar="STEPS",
+            help="Refuse scans estimated above this many integration steps (points x periods x steps per period).",
+        ),
+        click.option("--yes", "-y", "yes", is_flag=True, help="Run whatever the work estimate (lifts --max-work)."),
+    ]
+
+
+def max_work(limit: float, yes: bool) -> float | None:
+    """The work limit to pass on: None (no limit) with ``--yes``."""
+    return None if yes else limit
 
 
 def apply_options(options: list[Callable]) -> Callable:

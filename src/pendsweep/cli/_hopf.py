@@ -9,10 +9,11 @@ from pathlib import Path
 import click
 
 from ..errors import ConfigError
+from ..params import ENCODER_RESOLUTION
 from ..sweepfile import MAX_POINTS
-from ._app import PATH, FiniteFloat, LazyChoice, main
+from ._app import PATH, SMALL_ANGLE, FiniteFloat, LazyChoice, main
 from ._checks import check_output, key_values, model_sets
-from ._executor import apply_options, executor_options
+from ._executor import apply_options, executor_options, work_options
 from ._sweep import DEVICE_OPTION, prepare_output
 
 #: Model parameters the scan itself sets: alpha is searched, fe follows --what, M is --M.
@@ -131,7 +132,14 @@ def _all_methods() -> str:
 @click.option(
     "--progress/--no-progress", default=None, help="Progress bar on stderr (default: when stderr is a terminal)."
 )
-@apply_options(executor_options())
+@click.option(
+    "--rest-threshold",
+    type=SMALL_ANGLE,
+    default=ENCODER_RESOLUTION,
+    show_default=True,
+    help="Simulate: the kicked pendulum is at rest when its last period's max|theta| is below this [rad], 0 to pi.",
+)
+@apply_options(executor_options() + work_options())
 def hopf(
     what,
     masses,
@@ -144,12 +152,15 @@ def hopf(
     periods,
     tol,
     alpha_max,
+    rest_threshold,
     output,
     jobs,
     overwrite,
     progress,
     executor,
     scheduler,
+    max_work,
+    yes,
 ):
     """Hopf boundary alpha_H [N] of the semi-trivial solution (Fig. 10).
 
@@ -175,7 +186,7 @@ def hopf(
         model=fixed,
         backend=backend,
         backend_options=with_device(backend, options, device or options.get("device")),
-        kick=kick, periods=periods, tol=tol, alpha_max=alpha_max,
+        kick=kick, periods=periods, tol=tol, alpha_max=alpha_max, rest_threshold=rest_threshold,
     )  # fmt: skip
     default = output is None
     output = DEFAULT_OUTPUT if default else output
@@ -183,7 +194,15 @@ def hopf(
     progress = sys.stderr.isatty() if progress is None else progress
     runner = make_executor(executor, scheduler)
     try:
-        df = run_hopf(config, output, n_jobs=jobs, progress=progress, overwrite=overwrite, executor=runner)
+        df = run_hopf(
+            config,
+            output,
+            n_jobs=jobs,
+            progress=progress,
+            overwrite=overwrite,
+            executor=runner,
+            max_work=None if yes else max_work,
+        )
     finally:
         runner.close()
     shown = ["omega_hat", "fe", "M", "method", "alpha_H", "status", "multiplier", "growth_above", "kick", "runs"]

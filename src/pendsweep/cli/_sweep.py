@@ -16,7 +16,7 @@ from ..params import PARAM_SPECS, ModelParams
 from ..sweepfile import MAX_POINTS, MAX_STARTS, grid_size
 from ._app import ANGLE, FINITE, PATH, PERIODS, RATE, SEED, SMALL_ANGLE, STEP_S, LazyChoice, given, main
 from ._checks import FIGURE_SUFFIXES, check_input, check_output, check_output_dir, key_values, model_sets
-from ._executor import apply_options, executor_options
+from ._executor import apply_options, executor_options, max_work, work_options
 
 
 def load_model_file(path: Path) -> dict[str, float]:
@@ -146,7 +146,23 @@ def sweep_options(default_step: float, unit: str):
                 type=PERIODS,
                 default=100,
                 show_default=True,
-                help="Forcing periods discarded at each point [-].",
+                help="Forcing periods discarded at each point [-] (with --transient fixed).",
+            ),
+            click.option(
+                "--transient",
+                type=LazyChoice(".sweep", "TRANSIENTS"),
+                default="fixed",
+                show_default=True,
+                help="fixed: discard --transient-periods (the paper); auto: integrate each point until its section "
+                "repeats (n <= 8 periods, 1e-3) or its rotation number is steady, then record; rows gain settled, "
+                "transient_periods_used.",
+            ),
+            click.option(
+                "--max-transient-periods",
+                type=click.IntRange(1, PERIODS.max),
+                default=1000,
+                show_default=True,
+                help="Cap of --transient auto [forcing periods].",
             ),
             click.option(
                 "--record-periods",
@@ -202,6 +218,7 @@ def sweep_options(default_step: float, unit: str):
                 help="Parallel workers for independent branches/points (-1: all cores).",
             ),
             *executor_options(),
+            *work_options(),
             click.option(
                 "-o",
                 "--output",
@@ -238,6 +255,10 @@ def refuse_inapplicable(ctx: click.Context, kw: dict[str, Any]) -> None:
     for name in ("direction", "kick"):
         if mode != "continue" and given(ctx, name):
             raise ConfigError(f"--{name} {kw[name]} applies only to --mode continue (mode is {mode})")
+    if kw["transient"] == "auto" and given(ctx, "transient_periods"):
+        raise ConfigError(f"--transient-periods {kw['transient_periods']} applies only to --transient fixed")
+    if kw["transient"] == "fixed" and given(ctx, "max_transient_periods"):
+        raise ConfigError(f"--max-transient-periods {kw['max_transient_periods']} applies only to --transient auto")
 
 
 def build_config(parameter: str, default_step: float, kw: dict[str, Any], ctx: click.Context | None = None):
@@ -302,6 +323,8 @@ def build_config(parameter: str, default_step: float, kw: dict[str, Any], ctx: c
         rest_threshold=kw["rest_threshold"],
         starts=kw["starts"] if kw["mode"] == "multistart" else 1,
         seed=kw["seed"],
+        transient=kw["transient"],
+        max_transient_periods=kw["max_transient_periods"],
     )
 
 
@@ -346,6 +369,7 @@ def execute(
     executor: str = "local",
     scheduler: str | None = None,
     default_output: bool = False,
+    work_limit: float | None = None,
 ) -> None:
     """Run a sweep (on ``executor``), print a summary, optionally plot.
 
@@ -367,7 +391,9 @@ def execute(
     t0 = time.perf_counter()
     runner = make_executor(executor, scheduler)
     try:
-        df = run_sweep(config, output, n_jobs=jobs, progress=progress, overwrite=overwrite, executor=runner)
+        df = run_sweep(
+            config, output, n_jobs=jobs, progress=progress, overwrite=overwrite, executor=runner, max_work=work_limit
+        )
     finally:
         runner.close()
     elapsed = time.perf_counter() - t0
@@ -382,7 +408,8 @@ def execute(
 
 def _run_options(kw: dict[str, Any]) -> dict[str, Any]:
     return dict(jobs=kw["jobs"], overwrite=kw["overwrite"], progress=kw["progress"], plot_path=kw["plot_path"],
-                executor=kw["executor"], scheduler=kw["scheduler"], default_output=kw["output"] is None)  # fmt: skip
+                executor=kw["executor"], scheduler=kw["scheduler"], default_output=kw["output"] is None,
+                work_limit=max_work(kw["max_work"], kw["yes"]))  # fmt: skip
 
 
 def _sweep_command(name: str, parameter: str, default_step: float, help_text: str):
@@ -482,8 +509,10 @@ def _list_builtin() -> None:
 @click.option("-j", "--jobs", type=int, default=-1, show_default=True, help="Parallel workers (-1: all cores).")
 @click.option("--overwrite", is_flag=True, help="Replace earlier results instead of resuming.")
 @click.option("--progress/--no-progress", default=None, help="Progress bar on stderr (default: when a terminal).")
-@apply_options(executor_options())
-def run_definition(definition, list_builtin, output, do_plot, jobs, overwrite, progress, executor, scheduler):
+@apply_options(executor_options() + work_options())
+def run_definition(
+    definition, list_builtin, output, do_plot, jobs, overwrite, progress, executor, scheduler, max_work, yes
+):
     """Run a declarative sweep: a built-in NAME (see --list), a TOML file, or a results parquet to regenerate.
 
     Examples: pendsweep run fig11a; pendsweep run my-sweep.toml;
@@ -518,7 +547,8 @@ def run_definition(definition, list_builtin, output, do_plot, jobs, overwrite, p
         plot_path = spec.plot if do_plot else None
         title = spec.description or None
     execute(config, output, jobs=jobs, overwrite=overwrite, progress=progress, plot_path=plot_path, title=title,
-            executor=executor, scheduler=scheduler, default_output=default_output)  # fmt: skip
+            executor=executor, scheduler=scheduler, default_output=default_output,
+            work_limit=None if yes else max_work)  # fmt: skip
 
 
 @main.command("plot", short_help="Draw a Fig. 11-style bifurcation diagram.")

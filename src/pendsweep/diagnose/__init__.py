@@ -2,7 +2,7 @@
 the extended model and its gain on held-out data."""
 
 from .effects import EFFECTS, Effect, applicable
-from .fit import Diagnosis, Fit, diagnose, fit_model
+from .fit import Diagnosis, Fit, Problem, diagnose, fit_model
 from .replay import Replay
 from .synth import Sensors, synthesize
 
@@ -11,6 +11,7 @@ __all__ = [
     "Diagnosis",
     "Effect",
     "Fit",
+    "Problem",
     "Replay",
     "Sensors",
     "applicable",

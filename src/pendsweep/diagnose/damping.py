@@ -49,7 +49,7 @@ from .signatures import extrema
 
 #: Names of the physical parameters (per unit inertia) and nuisance parameters.
 PHYSICS = ("beta1", "beta2", "beta3", "L")
-NUISANCE = ("theta0",)
+NUISANCE = ("theta_offset",)
 MAX_ITERATIONS = 40
 
 
@@ -129,8 +129,8 @@ class _Swing:
         p = kernel_vector(dict(m=1.0, l=L, b1=q["beta1"] * L * L, b2=q["beta2"] * L * L, b3=q["beta3"] * L * L,
                                g=self.g, M=1.0, C=0.0, K=1.0, k3=0.0))  # fmt: skip
         out = np.empty((n or self.n, 2))
-        pendulum_trace(np.array([q["theta_init"] - q["theta0"], q["thetadot_init"]]), p, self.dt, self.substeps, out)
-        return out[:, 0] + q["theta0"]
+        pendulum_trace(np.array([q["theta_init"] - q["theta_offset"], q["thetadot_init"]]), p, self.dt, self.substeps, out)
+        return out[:, 0] + q["theta_offset"]
 
     def turning_points(self, q: dict[str, float]) -> np.ndarray:
         """Simulated ``(time, amplitude)`` of the first ``k`` turning points, shape (k, 2)."""
@@ -138,7 +138,7 @@ class _Swing:
         if not np.all(np.isfinite(theta)):
             return np.full((self.k, 2), np.nan)
         t = np.arange(len(theta)) * self.dt
-        ex = extrema(t, theta - q["theta0"], self.min_amp)
+        ex = extrema(t, theta - q["theta_offset"], self.min_amp)
         # The start is itself a turning point; compare from the next one on.
         ex = ex[ex.t > 0.5 * self.ex.t.iloc[0]]
         out = np.full((self.k, 2), np.nan)
@@ -149,14 +149,14 @@ class _Swing:
 
     def residual(self, q: dict[str, float]) -> np.ndarray:
         sim = self.turning_points(q)
-        meas_a = self.amplitudes(q["theta0"])
+        meas_a = self.amplitudes(q["theta_offset"])
         r = np.concatenate([(sim[:, 1] - meas_a) / self.sigma_a, (sim[:, 0] - self.ex.t.to_numpy()) / self.sigma_t])
         # A missing turning point (swing died out too early) costs its full amplitude.
         return np.where(np.isfinite(r), r, np.concatenate([meas_a / self.sigma_a, np.full(self.k, 0.1 / self.sigma_t)]))
 
     def envelope_error(self, q: dict[str, float]) -> float:
         sim = self.turning_points(q)[:, 1]
-        meas = self.amplitudes(q["theta0"])
+        meas = self.amplitudes(q["theta_offset"])
         with np.errstate(invalid="ignore"):
             rel = np.abs(sim - meas) / meas
         return float(np.max(np.where(np.isfinite(rel), rel, 1.0)))
@@ -248,7 +248,7 @@ def _update(sw: _Swing, q: dict[str, float], free: tuple[str, ...], scales: dict
     return dict(q, **dict(zip(free, x))), err, it
 
 
-_SCALES = {"beta1": 0.1, "beta2": 0.01, "beta3": 0.01, "L": 0.01, "theta0": 0.01, "theta_init": 0.01, "thetadot_init": 0.1}
+_SCALES = {"beta1": 0.1, "beta2": 0.01, "beta3": 0.01, "L": 0.01, "theta_offset": 0.01, "theta_init": 0.01, "thetadot_init": 0.1}
 
 
 def fit_damping(record: Record, skip: int = 1) -> DampingFit:
@@ -264,7 +264,7 @@ def fit_damping(record: Record, skip: int = 1) -> DampingFit:
     starts = [step2, stages["step1_small_angle_linear"], dict(step2, beta1=mean_dec * omega0**2 / 2.0, beta2=0.0)]
     best = None
     for start in starts:
-        q = dict(start, theta0=sw.offset0, theta_init=sw.theta_init0, thetadot_init=sw.thetadot_init0)
+        q = dict(start, theta_offset=sw.offset0, theta_init=sw.theta_init0, thetadot_init=sw.thetadot_init0)
         q, err, iterations = _update(sw, q, PHYSICS + NUISANCE, _SCALES)
         r = sw.residual(q)
         if best is None or r @ r < best[0]:
@@ -277,7 +277,7 @@ def fit_damping(record: Record, skip: int = 1) -> DampingFit:
         stages=stages,
         envelope_error=sw.envelope_error(q),
         iterations=iterations,
-        measured=np.stack([sw.ex.t.to_numpy(), sw.amplitudes(q["theta0"])], axis=1),
+        measured=np.stack([sw.ex.t.to_numpy(), sw.amplitudes(q["theta_offset"])], axis=1),
         simulated=sw.turning_points(q),
     )
 
@@ -289,11 +289,11 @@ def predict(fit: DampingFit, record: Record, skip: int = 1) -> dict[str, Any]:
     turning points.
     """
     sw = _Swing(record, record.params.g, skip)
-    q = dict(fit.physics, theta0=sw.offset0, theta_init=sw.theta_init0, thetadot_init=sw.thetadot_init0)
+    q = dict(fit.physics, theta_offset=sw.offset0, theta_init=sw.theta_init0, thetadot_init=sw.thetadot_init0)
     q, _, _ = _update(sw, q, NUISANCE, _SCALES)
     return {
         "envelope_error": sw.envelope_error(q),
         "nuisance": {k: q[k] for k in NUISANCE},
-        "measured": np.stack([sw.ex.t.to_numpy(), sw.amplitudes(q["theta0"])], axis=1),
+        "measured": np.stack([sw.ex.t.to_numpy(), sw.amplitudes(q["theta_offset"])], axis=1),
         "simulated": sw.turning_points(q),
     }

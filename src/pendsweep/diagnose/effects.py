@@ -1,7 +1,7 @@
 """The fixed vocabulary of candidate effects (model extensions).
 
 Each cause has one parameter. Parameters that are :class:`ModelParams` fields
-go into the extended-model params file; ``gain``, ``theta0``, ``tau`` and
+go into the extended-model params file; ``gain``, ``theta_offset``, ``tau`` and
 ``gain_Fs`` describe the measurement chain of one test and stay on the data
 side (see ``docs/measured-data.md`` for how a sweep accounts for them).
 """
@@ -53,7 +53,7 @@ EFFECTS: dict[str, Effect] = {
         Effect("viscous_damping", "b2", _ALL, 4.5e-5, 0.0, _INF, "kg m^2/s", "pendulum viscous damping"),
         Effect("quadratic_drag", "b3", _ALL, 1e-6, 0.0, _INF, "kg m^2", "pendulum air drag"),
         Effect("pendulum_length", "l", _ALL, 0.2, 1e-3, _INF, "m", "effective length"),
-        Effect("angle_offset", "theta0", _ALL, 0.01, -_INF, _INF, "rad", "encoder zero offset, measured = true + theta0"),
+        Effect("angle_offset", "theta_offset", _ALL, 0.01, -_INF, _INF, "rad", "encoder zero offset, measured = true + theta_offset"),
         Effect("oscillator_damping", "C", _OSC, 20.0, 0.0, _INF, "kg/s", "oscillator damping"),
         Effect("oscillator_stiffness", "K", _OSC, 1910.0, 1.0, _INF, "N/m", "oscillator stiffness"),
         Effect("oscillator_mass", "M", _OSC, 10.9, 1e-2, _INF, "kg", "oscillator mass"),
@@ -67,7 +67,7 @@ EFFECTS: dict[str, Effect] = {
 }
 
 #: Parameters that live on the measurement side, with their neutral values.
-CHAIN_PARAMS = {"gain": 1.0, "theta0": 0.0, "tau": 0.0, "gain_Fs": 1.0}
+CHAIN_PARAMS = {"gain": 1.0, "theta_offset": 0.0, "tau": 0.0, "gain_Fs": 1.0}
 
 
 def applicable(kind: str) -> list[Effect]:

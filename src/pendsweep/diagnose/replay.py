@@ -22,7 +22,14 @@
     change the physical M2/C2 only and ``oscillator_mass``/``_damping`` the
     numerical M1/C1.
 
-The first ``train_fraction`` of the record trains the fits; the rest is held out.
+Compared samples: the part of the record where the data move (a channel's
+peak-to-peak over :data:`MOTION_WINDOW` exceeds a few quantisation steps and
+noise levels, dilated by the window): a pendulum resting at the end of a free
+decay, or exactly constant through a forced record, carries no information and
+is left out. A channel constant over the whole record is not compared at all.
+The compared samples are cut into ``folds x BLOCKS_PER_FOLD`` contiguous
+blocks; fold ``k`` holds out blocks ``k, k + folds, ...`` (blocked
+cross-validation, see :mod:`pendsweep.diagnose.fit`).
 """
 
 from __future__ import annotations
@@ -30,6 +37,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.ndimage import maximum_filter1d, minimum_filter1d
 from scipy.signal import savgol_filter
 
 from ..errors import ConfigError
@@ -42,7 +50,11 @@ from .effects import nominal_values
 CHANNELS = {"free_decay": ("theta",), "forced": ("y", "theta"), "substructured": ("y", "theta", "y_cmd", "Fs")}
 #: Default short-horizon segment length for forced records [s].
 DEFAULT_HORIZON = 4.0
-TRAIN_FRACTION = 0.6
+#: Cross-validation folds and contiguous blocks per fold.
+FOLDS = 5
+BLOCKS_PER_FOLD = 4
+#: Window of the motion test [s].
+MOTION_WINDOW = 0.25
 #: Largest integration step of free-swing replays [s] (the paper's 1 ms).
 MAX_STEP = 1e-3
 #: Savitzky-Golay window for state estimates [s] (cubic).
@@ -83,34 +95,41 @@ class Replay:
     record : Record
     horizon : float, optional
         Segment length [s] for forced records (default :data:`DEFAULT_HORIZON`).
-    train_fraction : float
-        Leading fraction of the samples used for fitting.
+    folds : int
+        Cross-validation folds (2 to 20).
     """
 
-    def __init__(self, record: Record, horizon: float | None = None, train_fraction: float = TRAIN_FRACTION):
+    def __init__(self, record: Record, horizon: float | None = None, folds: int = FOLDS):
         if record.kind not in CHANNELS:
             raise ConfigError(
                 f"kind {record.kind!r} cannot be replayed yet; supported kinds: {', '.join(CHANNELS)}"
             )
-        if not 0.1 <= train_fraction <= 0.9:
-            raise ConfigError(f"train fraction {train_fraction!r} must lie in [0.1, 0.9]")
+        if not 2 <= folds <= 20:
+            raise ConfigError(f"folds = {folds!r} must lie in [2, 20]")
         self.record = record
         self.kind = record.kind
-        self.channels = tuple(c for c in CHANNELS[record.kind] if c in record.data)
         self.dt = record.dt
         self.n = len(record.data)
         self.t = record.t - record.t[0]
+        every = tuple(c for c in CHANNELS[record.kind] if c in record.data)
+        # A channel that never changes (a pendulum resting through a forced record) carries no information.
+        self.constant = tuple(c for c in every if np.ptp(record.channel(c)) == 0.0)
+        self.channels = tuple(c for c in every if c not in self.constant)
+        if not self.channels:
+            raise ConfigError(f"{record.name}: every compared channel ({', '.join(every)}) is constant; nothing to compare")
         self.meas = {c: record.channel(c) for c in self.channels}
-        self.scale = {}
-        for c in self.channels:
-            s = float(np.std(self.meas[c]))
-            if s == 0.0:
-                raise ConfigError(f"{record.name}: channel {c!r} is constant; nothing to compare")
-            self.scale[c] = s
+        self.scale = {c: float(np.std(self.meas[c])) for c in self.channels}
         self.noise = {c: noise_std(self.meas[c]) for c in self.channels}
-        self.n_train = int(round(train_fraction * self.n))
-        if self.n_train < 20 or self.n - self.n_train < 20:
-            raise ConfigError(f"{record.name}: {self.n} samples are too few to split into training and held-out parts")
+        self.folds = int(folds)
+        self.moving = self._moving()
+        self.eval_idx = np.flatnonzero(self.moving)
+        n_blocks = self.folds * BLOCKS_PER_FOLD
+        if len(self.eval_idx) < 10 * n_blocks:
+            raise ConfigError(
+                f"{record.name}: the data move in {len(self.eval_idx)} samples, too few for "
+                f"{n_blocks} cross-validation blocks of 10 samples"
+            )
+        self.blocks = np.array_split(self.eval_idx, n_blocks)
         self.nominal = nominal_values(record.params, record.tau)
         est = {c: smoothed(record.channel(c), self.dt) for c in ("y", "theta", "y_cmd") if c in record.data}
         if self.kind == "free_decay":
@@ -122,7 +141,7 @@ class Replay:
             if not (math.isfinite(self.horizon) and self.horizon > 20 * self.dt):
                 raise ConfigError(f"horizon = {horizon!r} s must exceed 20 samples ({20 * self.dt:g} s)")
             h = int(round(self.horizon / self.dt))
-            self.segments = _cut(0, self.n_train, h) + _cut(self.n_train, self.n, h)
+            self.segments = _cut(0, self.n, h)
             starts = np.array([s for s, _ in self.segments])
             # y* of a substructured test is the command (no prediction).
             y = est["y_cmd" if self.kind == "substructured" else "y"]
@@ -150,25 +169,25 @@ class Replay:
         v = dict(self.nominal, **self.initial_guess)
         v.update(values)
         p = kernel_vector(v)
-        theta0 = v["theta0"]
+        theta_offset = v["theta_offset"]
         if self.kind == "free_decay":
             out = np.empty((stop, 2))
-            state = np.array([v["theta_init"] - theta0, v["thetadot_init"]])
+            state = np.array([v["theta_init"] - theta_offset, v["thetadot_init"]])
             pendulum_trace(state, p, self.dt, self.substeps, out)
-            return {"theta": out[:, 0] + theta0}
+            return {"theta": out[:, 0] + theta_offset}
         if self.kind == "substructured":
-            return self._loop(v, p, theta0, stop)
+            return self._loop(v, p, theta_offset, stop)
         sim = np.empty((stop, 4))
         for k, (i0, i1) in enumerate(self.segments):
             if i0 >= stop:
                 break
             i1 = min(i1, stop)
             state = self.states0[k].copy()
-            state[2] -= theta0
+            state[2] -= theta_offset
             driven_trace(state, p, self.force[i0:i1], self.force_half[i0 : i1 - 1], v["gain"], self.dt, sim[i0:i1])
-        return {"y": sim[:, 0], "theta": sim[:, 2] + theta0}
+        return {"y": sim[:, 0], "theta": sim[:, 2] + theta_offset}
 
-    def _loop(self, v: dict[str, float], p: np.ndarray, theta0: float, stop: int) -> dict[str, np.ndarray]:
+    def _loop(self, v: dict[str, float], p: np.ndarray, theta_offset: float, stop: int) -> dict[str, np.ndarray]:
         sim = np.empty((stop, 4))
         nom = self.nominal
         # M1, C1 are the numerical model's code values: M and C move them, M2 and C2 do not.
@@ -180,32 +199,46 @@ class Replay:
             if i0 >= stop or M1 <= 0:
                 break
             state = self.states0[k].copy()
-            state[2] -= theta0
+            state[2] -= theta_offset
             cmd, cmdd = self.command.copy(), self.command_slope.copy()
             substructured_replay(
                 state, p, M1, C1, v["M2"], v["C2"], self.force, self.force_half, v["gain"], v["gain_Fs"],
                 v["tau"], self.dt, 1, cmd, cmdd, i0, sim[i0 : min(i1, stop)],
             )
-        return {"y": sim[:, 0], "theta": sim[:, 1] + theta0, "Fs": sim[:, 2], "y_cmd": sim[:, 3]}
+        return {"y": sim[:, 0], "theta": sim[:, 1] + theta_offset, "Fs": sim[:, 2], "y_cmd": sim[:, 3]}
+
+    def _moving(self) -> np.ndarray:
+        """Samples where some compared channel moves, by a peak-to-peak test over a sliding window."""
+        w = max(5, int(round(MOTION_WINDOW / self.dt)))
+        mask = np.zeros(self.n, dtype=bool)
+        for c in self.channels:
+            x = self.meas[c]
+            steps = np.abs(np.diff(x))
+            quantum = float(steps[steps > 0].min()) if np.any(steps > 0) else 0.0
+            threshold = max(3.0 * quantum, 6.0 * self.noise[c])
+            ptp = maximum_filter1d(x, w) - minimum_filter1d(x, w)
+            mask |= ptp > threshold
+        # Dilate: the window around a moving sample still belongs to the motion.
+        return maximum_filter1d(mask.astype(np.uint8), 2 * w + 1).astype(bool)
+
+    def fold_indices(self, k: int) -> np.ndarray:
+        """Sample indices held out by fold ``k``."""
+        return np.concatenate(self.blocks[k :: self.folds])
+
+    def train_indices(self, k: int) -> np.ndarray:
+        """Compared sample indices fitted in fold ``k``."""
+        return np.concatenate([b for j, b in enumerate(self.blocks) if j % self.folds != k])
 
     # -- errors -----------------------------------------------------------------
-    def residuals(self, sim: dict[str, np.ndarray], part: slice) -> np.ndarray:
-        """Normalised residuals (sim - measured) / std(measured), channels stacked."""
-        r = [(sim[c][part] - self.meas[c][part]) / self.scale[c] for c in self.channels]
+    def residuals(self, sim: dict[str, np.ndarray], idx: np.ndarray | slice) -> np.ndarray:
+        """Normalised residuals (sim - measured) / std(measured) at ``idx``, channels stacked."""
+        r = [(sim[c][idx] - self.meas[c][idx]) / self.scale[c] for c in self.channels]
         return np.concatenate(r)
 
-    def nrmse(self, sim: dict[str, np.ndarray], part: slice) -> float:
-        """RMS over channels of RMSE / std(measured channel) on ``part``."""
-        r = self.residuals(sim, part)
+    def nrmse(self, sim: dict[str, np.ndarray], idx: np.ndarray | slice | None = None) -> float:
+        """RMS over channels of RMSE / std(measured channel) at ``idx`` (default: the compared samples)."""
+        r = self.residuals(sim, self.eval_idx if idx is None else idx)
         return float(np.sqrt(np.mean(r * r))) if np.all(np.isfinite(r)) else math.inf
-
-    @property
-    def train(self) -> slice:
-        return slice(0, self.n_train)
-
-    @property
-    def held_out(self) -> slice:
-        return slice(self.n_train, self.n)
 
     def noise_floor(self) -> float:
         """NRMSE that sensor noise alone gives, estimated from the data."""

@@ -10,7 +10,7 @@ import numpy as np
 
 from ..data import UNITS
 from .effects import EFFECTS, model_file, split_values
-from .fit import DELTA_BIC, FLOOR_SHARE, P_VALUE, Diagnosis
+from .fit import UNEXPLAINED_RATIO, Diagnosis
 from .signatures import backbone, cross_correlation, extrema, residual_spectrum, summarize
 
 #: A runner-up whose held-out error is within this factor of the best's is reported as not distinguishable.
@@ -21,7 +21,7 @@ def extended_params(diag: Diagnosis) -> dict[str, float]:
     """The extended model as a JSON-able mapping of ModelParams fields.
 
     The nominal model with the named cause's estimate applied when it is a
-    ModelParams field; chain parameters (gain, theta0, tau, gain_Fs) and the
+    ModelParams field; chain parameters (gain, theta_offset, tau, gain_Fs) and the
     record's forcing (alpha, fe) are not model physics and are left out.
     """
     values = dict(diag.replay.nominal)
@@ -73,7 +73,7 @@ def _figures(diag: Diagnosis, outdir: Path) -> list[Path]:
         ax.plot(t, diag.nominal.sim[c], "C0-", lw=0.8, label="nominal")
         if diag.best:
             ax.plot(t, ext.sim[c], "C3--", lw=0.8, label=f"extended ({diag.cause})")
-        ax.axvline(t[rp.n_train], color="0.5", ls=":", label="held-out from here")
+        _shade_compared(ax, rp)
         ax.set_ylabel(f"{c} [{units[c]}]")
     axes[0, 0].legend(loc="upper right", fontsize=8)
     axes[-1, 0].set_xlabel("t [s]")
@@ -83,7 +83,7 @@ def _figures(diag: Diagnosis, outdir: Path) -> list[Path]:
     for ax, c in zip(axes[:, 0], rp.channels):
         ax.plot(t, diag.nominal.sim[c] - rp.meas[c], "C0-", lw=0.6, label="nominal")
         ax.plot(t, ext.sim[c] - rp.meas[c], "C3-", lw=0.6, label="extended")
-        ax.axvline(t[rp.n_train], color="0.5", ls=":")
+        _shade_compared(ax, rp)
         ax.set_ylabel(f"residual {c} [{units[c]}]")
     axes[0, 0].legend(loc="upper right", fontsize=8)
     axes[-1, 0].set_xlabel("t [s]")
@@ -143,6 +143,15 @@ def _figures(diag: Diagnosis, outdir: Path) -> list[Path]:
     return files
 
 
+def _shade_compared(ax, rp) -> None:
+    """Grey out the samples left out of the comparison (no motion)."""
+    idle = ~rp.moving
+    if idle.any():
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], idle.astype(int), [0]])))
+        for a, b in zip(edges[::2], edges[1::2]):
+            ax.axvspan(rp.t[a], rp.t[b - 1], color="0.9", zorder=0)
+
+
 def _save(fig, path: Path) -> Path:
     fig.tight_layout()
     fig.savefig(path, dpi=110)
@@ -173,11 +182,21 @@ def write_report(diag: Diagnosis, outdir: Path, source: str) -> list[Path]:
         else f"short-horizon prediction error: {len(rp.segments)} segments of about {rp.horizon:g} s, "
         "each started from the measured state (Savitzky-Golay estimates)"
     )
+    val = js["validation"]
+    if val["method"] == "leave-one-record-out":
+        split = (f"Validation: leave-one-record-out over {len(val['records'])} records (physics fitted on the others, "
+                 "the left-out record's initial state and chain parameters on itself).")
+    else:
+        split = (f"Validation: blocked cross-validation, {val['folds']} folds over {val['blocks']} contiguous blocks of "
+                 f"{val['block_seconds']:.3g} s (fold k holds out blocks k, k + {val['folds']}, ...), over the "
+                 f"{val['compared_seconds']:.3g} s of the {val['record_seconds']:.3g} s record where the data move"
+                 + (f"; constant channel(s) {', '.join(val['constant_channels'])} not compared" if val["constant_channels"] else "")
+                 + ".")
     lines = [
         f"# Diagnosis of `{source}`",
         "",
-        f"Kind `{rp.kind}`, {rp.n} samples at {1 / rp.dt:g} Hz; channels {', '.join(rp.channels)}. "
-        f"Comparison: {method}. Training part: first {rp.n_train} samples; held-out: the remaining {rp.n - rp.n_train}.",
+        f"Kind `{rp.kind}`, {len(diag.problem.replays)} record(s); first: {rp.n} samples at {1 / rp.dt:g} Hz, "
+        f"channels {', '.join(rp.channels)}. Comparison: {method}. {split}",
         "",
         "## Verdict",
         "",
@@ -185,32 +204,50 @@ def write_report(diag: Diagnosis, outdir: Path, source: str) -> list[Path]:
         "",
         "| quantity | value |",
         "|---|---|",
-        f"| held-out NRMSE, nominal (error_before) | {_fmt(js['error_before'])} |",
-        f"| held-out NRMSE, extended (error_after) | {_fmt(js['error_after'])} |",
+        f"| cross-validated NRMSE, nominal (error_before) | {_fmt(js['error_before'])} |",
+        f"| cross-validated NRMSE, verdict model (error_after) | {_fmt(js['error_after'])} |",
         f"| gain = 1 - after/before | {_fmt(js['gain'])} |",
+        f"| explained share of the nominal's excess squared error | {_fmt(js['explained_share'])} |",
         f"| noise floor (sensor-noise NRMSE from the data) | {_fmt(diag.noise_floor)} |",
+        f"| unexplained (after^2 > {UNEXPLAINED_RATIO[rp.kind]:g} x floor^2) | {js['unexplained']} |",
     ]
+    if val["method"] == "leave-one-record-out":
+        for name, e0, e1 in zip(val["records"], val["cross_record_error_nominal"], val["cross_record_error"]):
+            lines.append(f"| cross-record prediction NRMSE of `{name}`, nominal -> verdict | {_fmt(e0)} -> {_fmt(e1)} |")
     for c in diag.best.causes if diag.best else ():
-        p = EFFECTS[c].param
-        lines.append(f"| estimate {p} [{EFFECTS[c].unit}] | {_fmt(js['estimate'][p])} ± {_fmt(js['uncertainty'][p])} |")
-    for t, against in ((diag.tests, "the nominal"), (diag.tests.get("second_round", {}), "the first cause alone")):
-        if "best" in t:
+        for k in diag.best.keys_of(c):
+            lines.append(f"| estimate {k} [{EFFECTS[c].unit}] | {_fmt(js['estimate'][k])} ± {_fmt(js['uncertainty'][k])} |")
+    for key, label in (("first_round", "the best single cause"), ("second_round", "the best pair")):
+        t = diag.tests.get(key)
+        if t:
+            zs = ", ".join(f"{c}: {_fmt(z)}" for c, z in t["z"].items())
             lines += [
                 "",
-                f"Tests on the best candidate `{t['best']}` against {against}: held-out MSE reduction {_fmt(t['reduction'])} "
-                f"(needed > {FLOOR_SHARE:g} x floor^2 = {_fmt(t['reduction_needed'])}); "
-                f"block t test p = {_fmt(t['p_value'])} (needed < {P_VALUE:g}); "
-                f"BIC improvement {_fmt(t['delta_bic'])} (needed > {DELTA_BIC:g}).",
+                f"Tests of {label} `{t['model']}` against `{t['against']}`: explained share {_fmt(t['explained_share'])} "
+                f"(needed >= {t['share_needed']:g}); block Wilcoxon p = {_fmt(t['p_value'])} (needed < {t['p_needed']:g}); "
+                f"|change| / uncertainty {zs} (needed >= {t['z_needed']:g}, same sign in every fold: "
+                f"{all(t['folds_agree'].values())}); passed: {t['passed']}"
+                + (f"; beats the single cause with the actuator delay freed: {t['chain_ok']}" if "chain_check" in t else "")
+                + ".",
             ]
+    lines += ["", "## What remains", "", "Out-of-fold residual of the verdict model (peaks as multiples of the reference "
+              "frequency with their share of the residual power; lag-1 autocorrelation; largest correlation with the inputs):", ""]
+    for rec_name, rec in js["residual_signature"].items():
+        for c, e in rec.items():
+            if not isinstance(e, dict):
+                continue
+            peaks = ", ".join(f"{p['multiple']:.3g} {rec['reference']} ({100 * p['power_share']:.0f} %)" for p in e["peaks"])
+            corr = ", ".join(f"{k[5:]} {_fmt(v)}" for k, v in e.items() if k.startswith("corr_") and not k.endswith("_lag_s"))
+            lines.append(f"- `{rec_name}` {c}: rms {_fmt(e['rms'])}, lag-1 {_fmt(e['lag1'])}; peaks {peaks}; corr {corr}")
     amb = ambiguous_with(diag)
     if amb:
         lines += ["", f"Not distinguishable on this record from: {', '.join(f'`{a}`' for a in amb)} "
-                  "(held-out errors within 10% above the noise floor). A record with more amplitude range or a second forcing tone separates them."]
-    lines += ["", "## Candidates (sorted by held-out NRMSE)", "", "| cause | estimate | ± | held-out NRMSE | BIC (training) |", "|---|---|---|---|---|"]
+                  "(cross-validated errors within 10% above the noise floor). A record with more amplitude range or a second forcing tone separates them."]
+    lines += ["", "## Candidates (sorted by cross-validated NRMSE)", "", "| cause | estimate | ± | cross-validated NRMSE | BIC (fit) |", "|---|---|---|---|---|"]
     for c in diag.candidates:
         est = ", ".join(f"{p} = {_fmt(v)}" for p, v in c.estimate.items())
         err = ", ".join(_fmt(c.stderr[p]) for p in c.estimate)
-        lines.append(f"| `{c.cause}` | {est} | {err} | {_fmt(c.error_after)} | {c.bic:.1f} |")
+        lines.append(f"| `{c.cause}` | {est} | {err} | {_fmt(c.error_cv)} | {c.bic:.1f} |")
     lines.append(f"| (nominal) | | | {_fmt(diag.nominal.error_after)} | {diag.nominal.bic:.1f} |")
     lines += ["", "## Signature diagnostics (nominal model)", "", "| signature | value |", "|---|---|"]
     lines += [f"| {k} | {_fmt(v)} |" for k, v in sig.items()]
@@ -229,8 +266,8 @@ def write_report(diag: Diagnosis, outdir: Path, source: str) -> list[Path]:
         "## Extended model",
         "",
         "`extended.json` holds every ModelParams field of the extended model; run a sweep with it by "
-        "`pendsweep sweep ... --model extended.json`. Measurement-chain parameters (gain, theta0, tau, gain_Fs) are not "
-        "physics of the system and are not in the file: correct the recorded force by gain, the angle by theta0.",
+        "`pendsweep sweep ... --model extended.json`. Measurement-chain parameters (gain, theta_offset, tau, gain_Fs) are not "
+        "physics of the system and are not in the file: correct the recorded force by gain, the angle by theta_offset.",
     ]
     report = outdir / "report.md"
     report.write_text("\n".join(lines) + "\n")

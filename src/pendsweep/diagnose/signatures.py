@@ -154,3 +154,62 @@ def summarize(replay, nominal_sim: dict[str, np.ndarray]) -> dict[str, Any]:
         out["frequency_at_large_amplitude_hz"] = float(bb.frequency[bb.amplitude.idxmax()])
         out["nominal_small_amplitude_frequency_hz"] = math.sqrt(replay.nominal["g"] / replay.nominal["l"]) / (2 * math.pi)
     return out
+
+
+def _reference_frequency(replay) -> tuple[float, str]:
+    """The frequency residual peaks are reported against: f_e, or the measured swing frequency of a free decay."""
+    if replay.kind != "free_decay":
+        fe = replay.record.forcing.get("fe", replay.nominal["fe"])
+        return float(fe), "f_e"
+    theta = replay.meas["theta"][replay.eval_idx]
+    crossings = np.flatnonzero(np.diff(np.signbit(theta - np.mean(theta))))
+    if len(crossings) >= 3:
+        return float((len(crossings) - 1) / (2.0 * (crossings[-1] - crossings[0]) * replay.dt)), "f_swing"
+    return math.sqrt(replay.nominal["g"] / replay.nominal["l"]) / (2.0 * math.pi), "f_swing"
+
+
+def residual_signature(problem, fit, peaks: int = 3) -> dict[str, Any]:
+    """What the verdict model leaves, per record and channel (out-of-fold residuals).
+
+    ``peaks``: the strongest spectral peaks as multiples of the reference frequency
+    (f_e for forced records, the swing frequency for free decays) with their share of
+    the residual power; ``lag1``: lag-1 autocorrelation (about 0 for white sensor noise,
+    near 1 for a structured residual); correlations (largest |corr| over lags within
+    0.1 s) with the inputs: F_e, and y_cmd for substructured records; with the measured
+    angle and angular velocity for free decays (a frequency or a damping error).
+    """
+    out: dict[str, Any] = {}
+    for i, rp in enumerate(problem.replays):
+        f_ref, ref_name = _reference_frequency(rp)
+        rec: dict[str, Any] = {"reference": ref_name, "reference_hz": f_ref}
+        idx = rp.eval_idx
+        inputs = {}
+        if rp.kind == "free_decay":
+            th, thd = smoothed(rp.meas["theta"], rp.dt)
+            inputs = {"theta": th[idx], "thetadot": thd[idx]}
+        else:
+            inputs = {"Fe": rp.force[idx]}
+            if rp.kind == "substructured":
+                inputs["y_cmd"] = rp.command[idx]
+        for c in rp.channels:
+            r = fit.oof[i][c][idx]
+            if not np.all(np.isfinite(r)) or np.std(r) == 0:
+                continue
+            spec = residual_spectrum(r, rp.dt)
+            psd = spec.psd.to_numpy()
+            freq = spec.frequency.to_numpy()
+            local = np.flatnonzero((psd[1:-1] > psd[:-2]) & (psd[1:-1] >= psd[2:])) + 1
+            top = local[np.argsort(psd[local])[::-1][:peaks]]
+            entry: dict[str, Any] = {
+                "rms": float(np.sqrt(np.mean(r * r))),
+                "lag1": float(np.corrcoef(r[:-1], r[1:])[0, 1]),
+                "peaks": [{"multiple": float(freq[j] / f_ref), "hz": float(freq[j]), "power_share": float(psd[j] / psd.sum())} for j in top],
+            }
+            for name, s in inputs.items():
+                xc = cross_correlation(r, s, rp.dt, 0.1)
+                j = int(np.argmax(np.abs(xc["corr"].to_numpy())))
+                entry[f"corr_{name}"] = float(xc["corr"].iloc[j])
+                entry[f"corr_{name}_lag_s"] = float(xc.lag.iloc[j])
+            rec[c] = entry
+        out[rp.record.name if problem.joint else "record"] = rec
+    return out

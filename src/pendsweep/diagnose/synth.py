@@ -110,7 +110,7 @@ def synthesize(
         fine = np.empty(((n - 1) * oversample + 1, 2))
         pendulum_trace(np.array([theta_init, thetadot_init]), p, h, 1, fine)
         theta = fine[::oversample, 0]
-        data = pd.DataFrame({"t": t, "theta": _measure(theta + chain["theta0"], sensors.theta_step, 0.0, rng)})
+        data = pd.DataFrame({"t": t, "theta": _measure(theta + chain["theta_offset"], sensors.theta_step, 0.0, rng)})
         return Record(data, kind, nominal, name="synth")
     if kind == "substructured":
         return _substructured(model, chain, nominal, n, dt, rate, transient, theta_init, thetadot_init, oversample, sensors, rng, tone2)
@@ -126,7 +126,7 @@ def synthesize(
     data = pd.DataFrame(
         {
             "t": t,
-            "theta": _measure(rec[:, 2] + chain["theta0"], sensors.theta_step, 0.0, rng),
+            "theta": _measure(rec[:, 2] + chain["theta_offset"], sensors.theta_step, 0.0, rng),
             "y": _measure(rec[:, 0], sensors.y_step, sensors.y_noise, rng),
             "Fe": _measure(force[n_tr::oversample], sensors.force_step, sensors.force_noise, rng),
         }
@@ -160,7 +160,7 @@ def _substructured(model, chain, nominal, n, dt, rate, transient, theta_init, th
     data = pd.DataFrame(
         {
             "t": np.arange(n) * dt,
-            "theta": _measure(rec[:, 1] + chain["theta0"], sensors.theta_step, 0.0, rng),
+            "theta": _measure(rec[:, 1] + chain["theta_offset"], sensors.theta_step, 0.0, rng),
             "y": _measure(rec[:, 0], sensors.y_step, sensors.y_noise, rng),
             "Fe": force[n_tr:],
             "y_cmd": rec[:, 3],

@@ -40,5 +40,5 @@ def make_figures(names: list[str] | None, outdir: Path, quick: bool = False) -> 
 
 
 # Each module registers its figures on import (Figs. 8, 9, 11; Fig. 10; hybrid tests; stability; measured data;
-# Fig. 11 with continuation branches).
-from . import continuation, core, hopf, hybrid, measured, stability  # noqa: E402, F401
+# Fig. 11 with continuation branches; basins and two-parameter maps).
+from . import basins, continuation, core, hopf, hybrid, measured, stability  # noqa: E402, F401

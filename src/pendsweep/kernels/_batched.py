@@ -102,8 +102,12 @@ def twin_separation(ref, twin, scales):
 
 # error_model="numpy": no ZeroDivisionError branch (every denominator is > 0),
 # which would keep LLVM from vectorising the loop. The loop writes only six
-# arrays: more would exceed LLVM's budget of runtime alias checks.
-@nb.njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
+# arrays: more would exceed LLVM's budget of runtime alias checks. No
+# fastmath, not even FMA contraction: LLVM contracts the vector body and the
+# scalar remainder loop differently, which made a lane's last bits (and, on a
+# chaotic orbit, its whole trajectory) depend on its position in the chunk;
+# contraction was worth about 12 % of the kernel's time.
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def _step_chunk(y, yd, th, thd, peak, yabs, live, const, forcing, uniform, u0, u1, u2, sgn_per_stage):
     """Advance every live lane of a chunk by one RK4 step.
 

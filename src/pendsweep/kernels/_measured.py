@@ -107,8 +107,10 @@ def _delayed_command(cmd, cmdd, k, r, tau, dt):
     q = k + (r - tau) / dt
     if q <= 0.0:
         return cmd[0], cmdd[0], 0.0
-    # Segment [j, j + 1] with q in (j, j + 1], so t_k + dt never needs sample k + 2.
-    j = math.ceil(q - 1e-9) - 1
+    # Segment [j, j + 1] with q in (j, j + 1], so t_k + dt never needs sample k + 2. The
+    # tolerance absorbs rounding of q at a sample; j >= 0, or a q within it of 0 (a delay that
+    # is a whole number of samples) would index cmd[-1], the end of the record.
+    j = max(math.ceil(q - 1e-9) - 1, 0)
     return hermite(cmd[j], cmdd[j], cmd[j + 1], cmdd[j + 1], q - j, dt)
 
 

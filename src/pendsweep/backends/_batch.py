@@ -1,7 +1,9 @@
 """Many emulated points at once: the batched kernel behind a small API.
 
-:func:`run_batch` is what sweeps (``fresh`` and ``multistart`` modes) and
-Hopf simulation scans call for independent points on the emulated backend.
+:func:`run_batch` is the emulated backend's :meth:`run_points`, which sweeps
+(``fresh`` and ``multistart`` modes) and Hopf simulation scans call for
+independent points; :func:`batched_evidence` its ``evidence_many``, which
+the motion classifier calls.
 It groups points with equal steps per forcing period into lockstep chunks
 (so that they share the exact forcing table), packs the rest into mixed
 chunks, and runs the chunks on all numba threads.
@@ -16,13 +18,13 @@ from typing import NamedTuple, Sequence
 import numba as nb
 import numpy as np
 
-from .backends import steps_per_period
-from .errors import ConfigError
-from .gpu import check_device, run_batch_cuda
-from .kernels import N_RECORD_COLUMNS, STATUS_OK
-from .kernels._layout import SECTION_COLUMNS
-from .kernels._batched import Lanes, batched_periods
-from .params import ModelParams
+from ..errors import ConfigError
+from ..gpu import check_device, run_batch_cuda
+from ..kernels import N_RECORD_COLUMNS, STATUS_OK
+from ..kernels._batched import Lanes, batched_periods
+from ..kernels._layout import SECTION_COLUMNS
+from ..params import ModelParams
+from ._base import steps_per_period
 
 #: Points integrated in lockstep by one thread (a chunk's working set stays in L1/L2).
 DEFAULT_CHUNK = 128

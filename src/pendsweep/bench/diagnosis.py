@@ -1,0 +1,186 @@
+"""Diagnosis benchmark: verdicts on independently generated records (``make bench``).
+
+Records come from :mod:`pendsweep.diagnose.testbench` (no code shared with the
+replay kernels) with seeds from its ``TEST_SEEDS`` range (B); the verdict
+thresholds were chosen on ``CALIBRATION_SEEDS`` (range A) only
+(``python -m pendsweep.bench.diagnosis calibrate N`` prints the statistics they
+were read from). Writes a confusion matrix, recall per cause, the
+false-positive rate on clean records, the share of out-of-vocabulary records
+flagged ``unexplained``, pairs named right, estimate-error quantiles and a
+figure ``results/diagnosis_confusion.png``.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+
+from . import benchmark
+
+#: Records in the full and the quick run.
+RECORDS, QUICK_RECORDS = 200, 16
+GOALS = {"single_recall": 0.95, "clean_false_positive_rate": 0.02, "oov_flagged": 0.90, "pairs_right": 0.80}
+FIGURE = Path("results/diagnosis_confusion.png")
+
+
+def evaluate(seed: int) -> dict:
+    """Generate the case of ``seed``, diagnose it, and score the verdict."""
+    from ..diagnose import Replay, diagnose
+    from ..diagnose.effects import EFFECTS
+    from ..diagnose.testbench import draw_case, generate
+
+    category, case = draw_case(seed)
+    record = generate(case)
+    t0 = time.perf_counter()
+    d = diagnose(Replay(record))
+    seconds = time.perf_counter() - t0
+    js = d.to_json()
+    row = {
+        "seed": seed, "category": category, "kind": case.kind, "rate": case.rate, "at_rest": case.theta_init == 0.0,
+        "tones": len(case.tones), "truth": case.label, "extra": ",".join(case.extra), "verdict": js["cause"],
+        "unexplained": js["unexplained"], "explained_share": js["explained_share"], "seconds": seconds,
+        "error_before": js["error_before"], "error_after": js["error_after"], "noise_floor": js["noise_floor"],
+        "estimate_rel_error": {},
+        "first_round": {k: d.tests["first_round"][k] for k in ("model", "explained_share", "p_value", "z")} if "first_round" in d.tests else {},
+    }
+    for cause, truth in case.effects.items():
+        p = EFFECTS[cause].param
+        if p in js["estimate"]:
+            err = js["estimate"][p] - truth
+            row["estimate_rel_error"][cause] = abs(err) / (abs(truth) if p != "theta_offset" else 0.01)
+    return row
+
+
+def run_population(seeds, n_jobs: int = 2, progress: bool = True) -> list[dict]:
+    """Rows of :func:`evaluate` for ``seeds`` (joblib processes)."""
+    from joblib import Parallel, delayed
+    from tqdm import tqdm
+
+    seeds = list(seeds)
+    it = tqdm(seeds, desc="diagnosis records", file=sys.stderr, disable=not progress)
+    return list(Parallel(n_jobs=n_jobs, backend="loky")(delayed(evaluate)(s) for s in it))
+
+
+def summarize(rows: list[dict]) -> dict:
+    """Confusion matrix, recall per cause, false-positive rate, OOV flagged, pairs, estimate errors."""
+    singles = [r for r in rows if r["category"] == "single"]
+    clean = [r for r in rows if r["category"] == "clean"]
+    pairs = [r for r in rows if r["category"] == "pair"]
+    oov = [r for r in rows if r["category"] == "oov"]
+    confusion: dict[str, dict[str, int]] = {}
+    for r in singles + clean:
+        confusion.setdefault(r["truth"], Counter())[r["verdict"]] += 1
+    recall = {t: c[t] / sum(c.values()) for t, c in confusion.items() if t != "none"}
+    errors = [e for r in singles for e in r["estimate_rel_error"].values()]
+
+    def rate(rs, ok):
+        return sum(map(ok, rs)) / len(rs) if rs else math.nan
+
+    by_kind = {
+        k: {
+            "single_recall": rate([r for r in singles if r["kind"] == k], lambda r: r["verdict"] == r["truth"]),
+            "clean_false_positive_rate": rate([r for r in clean if r["kind"] == k], lambda r: r["verdict"] != "none"),
+            "oov_flagged": rate([r for r in oov if r["kind"] == k], lambda r: r["unexplained"]),
+        }
+        for k in ("free_decay", "forced", "substructured")
+    }
+    out = {
+        "records": len(rows),
+        "counts": {"clean": len(clean), "single": len(singles), "pair": len(pairs), "oov": len(oov)},
+        "single_recall": rate(singles, lambda r: r["verdict"] == r["truth"]),
+        "clean_false_positive_rate": rate(clean, lambda r: r["verdict"] != "none"),
+        "clean_flagged_unexplained": rate(clean, lambda r: r["unexplained"]),
+        "oov_flagged": rate(oov, lambda r: r["unexplained"]),
+        "pairs_right": rate(pairs, lambda r: set(r["verdict"].split("+")) == set(r["truth"].split("+"))),
+        "pairs_one_named_right": rate(pairs, lambda r: bool(set(r["verdict"].split("+")) & set(r["truth"].split("+")))),
+        "single_flagged_unexplained": rate(singles, lambda r: r["unexplained"]),
+        "recall_per_cause": recall,
+        "by_kind": by_kind,
+        "confusion": {t: dict(c) for t, c in sorted(confusion.items())},
+        "estimate_rel_error_quantiles": (
+            {q: float(np.quantile(errors, float(q))) for q in ("0.5", "0.9", "0.99")} if errors else {}
+        ),
+        "seconds_per_record_median": float(np.median([r["seconds"] for r in rows])),
+        "misses": [
+            {k: r[k] for k in ("seed", "category", "kind", "rate", "truth", "extra", "verdict", "unexplained")}
+            for r in rows
+            if (r["category"] in ("single", "clean", "pair") and r["verdict"] != r["truth"]
+                and set(r["verdict"].split("+")) != set(r["truth"].split("+")))
+            or (r["category"] == "oov" and not r["unexplained"])
+        ],
+    }
+    out["goals"] = GOALS
+    out["goals_met"] = {
+        "single_recall": out["single_recall"] >= GOALS["single_recall"],
+        "clean_false_positive_rate": out["clean_false_positive_rate"] <= GOALS["clean_false_positive_rate"],
+        "oov_flagged": out["oov_flagged"] >= GOALS["oov_flagged"],
+        "pairs_right": out["pairs_right"] >= GOALS["pairs_right"],
+    }
+    return out
+
+
+def plot(summary: dict, path: Path) -> Path:
+    """Confusion matrix of single-effect and clean records (rows: truth, columns: verdict)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    truths = sorted(summary["confusion"])
+    verdicts = sorted({v for c in summary["confusion"].values() for v in c} | set(truths))
+    mat = np.array([[summary["confusion"][t].get(v, 0) for v in verdicts] for t in truths], dtype=float)
+    fig = Figure(figsize=(1.0 + 0.55 * len(verdicts), 1.0 + 0.45 * len(truths)))
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot(1, 1, 1)
+    ax.imshow(mat / np.maximum(mat.sum(axis=1, keepdims=True), 1), cmap="Blues", vmin=0, vmax=1)
+    for i in range(len(truths)):
+        for j in range(len(verdicts)):
+            if mat[i, j]:
+                ax.text(j, i, int(mat[i, j]), ha="center", va="center", fontsize=7)
+    ax.set_xticks(range(len(verdicts)), verdicts, rotation=75, fontsize=7)
+    ax.set_yticks(range(len(truths)), truths, fontsize=7)
+    ax.set_xlabel("verdict")
+    ax.set_ylabel("hidden effect")
+    ax.set_title(
+        f"single recall {summary['single_recall']:.2f}, clean FP {summary['clean_false_positive_rate']:.2f}, "
+        f"OOV flagged {summary['oov_flagged']:.2f}, pairs {summary['pairs_right']:.2f}", fontsize=8)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    return path
+
+
+@benchmark("diagnosis")
+def bench_diagnosis(quick: bool) -> dict:
+    """Verdicts on RECORDS independently generated records of the test seed range."""
+    from ..diagnose.testbench import TEST_SEEDS
+
+    n = QUICK_RECORDS if quick else RECORDS
+    t0 = time.perf_counter()
+    rows = run_population(TEST_SEEDS[:n])
+    summary = summarize(rows)
+    summary["wall_seconds"] = time.perf_counter() - t0
+    summary["seed_range"] = f"TEST_SEEDS (range B) {TEST_SEEDS[0]}..{TEST_SEEDS[0] + n - 1}; thresholds chosen on CALIBRATION_SEEDS (range A)"
+    summary["figure"] = str(plot(summary, FIGURE))
+    return summary
+
+
+def main(argv: list[str]) -> None:
+    """``python -m pendsweep.bench.diagnosis calibrate N``: statistics on the calibration seeds."""
+    import json
+
+    from ..diagnose.testbench import CALIBRATION_SEEDS
+
+    n = int(argv[1]) if len(argv) > 1 else 60
+    rows = run_population(CALIBRATION_SEEDS[:n])
+    out = Path(argv[2]) if len(argv) > 2 else Path("results/diagnosis_calibration.json")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps({"rows": rows, "summary": summarize(rows)}, indent=1, default=float))
+    print(json.dumps(summarize(rows), indent=1, default=float))
+
+
+if __name__ == "__main__" and len(sys.argv) > 1 and sys.argv[1] == "calibrate":
+    main(sys.argv[1:])

@@ -1,0 +1,486 @@
+"""Independent measured-like records for testing the diagnosis (tests and ``make bench``).
+
+This generator shares **no integration code** with the replay kernels
+(``pendsweep.kernels``) nor with :mod:`pendsweep.diagnose.synth`: its
+right-hand sides are written here from Eqs. (1)-(4) of the paper (the 2 x 2
+mass matrix of Eqs. (1)-(2) is solved by Cramer's rule at every stage), it
+integrates with its own classical RK4 at a fine step of at most
+:data:`FINE_STEP` (0.1 ms) with the friction's sign evaluated at every stage
+(the replay holds it over a step), and its substructuring rig differs in form
+from the replay's:
+
+* actuator: commands ramped linearly between ticks, a transport delay,
+  then a second-order servo ``x'' = wn^2 (u - x) - 2 zeta wn x'`` (the replay
+  assumes a pure delay of Hermite-interpolated commands);
+* load cell: the true interface force of Eq. (4) integrated over each
+  controller tick (the replay differentiates a momentum);
+* the controller feeds back the *measured* (noisy) force.
+
+The record's metadata carries the user's nominal model and, for
+substructured records, the nominal actuator delay ``tau`` that a calibration
+of this servo would give: ``SERVO_DELAY + 2 zeta / wn`` (transport
+and the servo's low-frequency group delay).
+
+Measurement: encoder quantised in steps of 0.0013 rad (Table III), LVDT 10 um
+steps, 20 um rms noise and a slow random-walk drift, load cell 0.1 N rms noise
+and drift.
+
+Seed ranges: :data:`CALIBRATION_SEEDS` (range A) are the only records the
+verdict thresholds of :mod:`pendsweep.diagnose.fit` were chosen on;
+:data:`TEST_SEEDS` (range B) are what the tests and the ``diagnosis``
+benchmark check.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numba as nb
+import numpy as np
+import pandas as pd
+
+from ..data import Record
+from ..errors import ConfigError
+from ..params import FIG9_PO, TABLE_IV, ModelParams
+from .effects import EFFECTS, nominal_values
+
+#: Largest truth integration step [s].
+FINE_STEP = 1e-4
+#: Seeds the thresholds were chosen on (range A) and seeds the tests and benchmark check (range B).
+CALIBRATION_SEEDS = range(0, 100_000)
+TEST_SEEDS = range(1_000_000, 1_100_000)
+#: Table III encoder step [rad]; LVDT step, noise [m]; load-cell noise [N].
+ENCODER_STEP = 0.0013
+LVDT_STEP, LVDT_NOISE = 1e-5, 2e-5
+FORCE_NOISE = 0.1
+#: Random-walk drift over a record: LVDT [m], load cell [N] (one sigma at the end).
+LVDT_DRIFT, FORCE_DRIFT = 2e-5, 0.05
+#: Servo of the substructuring rig: transport delay [s], natural frequency [rad/s], damping ratio.
+SERVO_DELAY, SERVO_WN, SERVO_ZETA = 0.003, 2.0 * math.pi * 40.0, 0.7
+
+#: Effects outside the vocabulary: name -> (kinds, meaning).
+OUT_OF_VOCABULARY = {
+    "encoder_nonlinearity": (("free_decay", "forced", "substructured"), "measured theta = theta + a sin(20 theta), a [rad]"),
+    "damping_drift": (("free_decay", "forced", "substructured"), "pendulum b2 (free decay) or oscillator C (forced) or platform C2 (substructured) grows linearly to (1 + a) x nominal over the record"),
+    "stiffness_drift": (("forced",), "oscillator K grows linearly to (1 + a) x nominal over the record"),
+    "cubic_damping": (("forced",), "oscillator damping force C y' + a y'^3, a [N s^3/m^3]"),
+    "servo_gain": (("substructured",), "actuator follows (1 - a) x its command"),
+}
+
+
+# -- right-hand sides (Eqs. (1)-(2) and the rig), written independently of pendsweep.kernels ----------
+
+
+@nb.njit(cache=True, inline="always")
+def _friction(thd, b1, b2, b3):
+    """Pendulum friction torque of Eq. (2), sign taken at the stage itself."""
+    s = 1.0 if thd > 0.0 else (-1.0 if thd < 0.0 else 0.0)
+    return b1 * s + b2 * thd + b3 * thd * abs(thd)
+
+
+@nb.njit(cache=True, inline="always")
+def _coupled_acc(y, yd, th, thd, force, m, l, b, g, M, C, c3, K, k3):
+    """Accelerations (y'', theta'') of Eqs. (1)-(2) by Cramer's rule on the 2 x 2 mass matrix."""
+    s, c = math.sin(th), math.cos(th)
+    r1 = force - C * yd - c3 * yd * yd * yd - K * y - k3 * y * y * y - m * l * thd * thd * c
+    r2 = -_friction(thd, b[0], b[1], b[2]) - m * g * l * s
+    a11, a12, a22 = M + m, m * l * s, m * l * l
+    det = a11 * a22 - a12 * a12
+    return (r1 * a22 - a12 * r2) / det, (a11 * r2 - a12 * r1) / det
+
+
+@nb.njit(cache=True)
+def _tones(t, amps, freqs):
+    f = 0.0
+    for i in range(amps.shape[0]):
+        f += amps[i] * math.sin(2.0 * math.pi * freqs[i] * t)
+    return f
+
+
+@nb.njit(cache=True)
+def free_decay_truth(th, thd, m, l, b, g, h, nsub, n, drift):
+    """Fixed-pivot pendulum, RK4 step ``h``, ``nsub`` steps per sample, ``n`` samples.
+
+    ``drift``: b2 grows linearly from b2 to (1 + drift) b2 over the record. Returns theta [n].
+    """
+    out = np.empty(n)
+    out[0] = th
+    total = (n - 1) * nsub * h
+    bb = b.copy()
+    for i in range(1, n):
+        for j in range(nsub):
+            t = ((i - 1) * nsub + j) * h
+            bb[1] = b[1] * (1.0 + drift * t / total)
+            inert = m * l * l
+            k1x, k1v = thd, -(_friction(thd, bb[0], bb[1], bb[2]) + m * g * l * math.sin(th)) / inert
+            x2, v2 = th + 0.5 * h * k1x, thd + 0.5 * h * k1v
+            k2x, k2v = v2, -(_friction(v2, bb[0], bb[1], bb[2]) + m * g * l * math.sin(x2)) / inert
+            x3, v3 = th + 0.5 * h * k2x, thd + 0.5 * h * k2v
+            k3x, k3v = v3, -(_friction(v3, bb[0], bb[1], bb[2]) + m * g * l * math.sin(x3)) / inert
+            x4, v4 = th + h * k3x, thd + h * k3v
+            k4x, k4v = v4, -(_friction(v4, bb[0], bb[1], bb[2]) + m * g * l * math.sin(x4)) / inert
+            th += h * (k1x + 2.0 * k2x + 2.0 * k3x + k4x) / 6.0
+            thd += h * (k1v + 2.0 * k2v + 2.0 * k3v + k4v) / 6.0
+        out[i] = th
+    return out
+
+
+@nb.njit(cache=True)
+def forced_truth(z, m, l, b, g, M, C, c3, K, k3, gain, amps, freqs, h, nsub, n0, n, drift_c, drift_k):
+    """Eqs. (1)-(2) under ``gain * sum amps sin(2 pi freqs t)``; ``n0`` transient samples skipped.
+
+    ``drift_c``/``drift_k``: C/K grow linearly to (1 + drift) x over the recorded part.
+    Returns (n, 2): y [m], theta [rad] at the recorded samples.
+    """
+    out = np.empty((n, 2))
+    y, yd, th, thd = z[0], z[1], z[2], z[3]
+    total = max((n - 1) * nsub * h, h)
+    for i in range(n0 + n):
+        if i >= n0:
+            out[i - n0, 0], out[i - n0, 1] = y, th
+        if i == n0 + n - 1:
+            break
+        for j in range(nsub):
+            t = (i * nsub + j) * h
+            frac = max(t - n0 * nsub * h, 0.0) / total
+            Ci, Ki = C * (1.0 + drift_c * frac), K * (1.0 + drift_k * frac)
+            f1 = gain * _tones(t, amps, freqs)
+            f2 = gain * _tones(t + 0.5 * h, amps, freqs)
+            f4 = gain * _tones(t + h, amps, freqs)
+            a1, q1 = _coupled_acc(y, yd, th, thd, f1, m, l, b, g, M, Ci, c3, Ki, k3)
+            y2, yd2, th2, thd2 = y + 0.5 * h * yd, yd + 0.5 * h * a1, th + 0.5 * h * thd, thd + 0.5 * h * q1
+            a2, q2 = _coupled_acc(y2, yd2, th2, thd2, f2, m, l, b, g, M, Ci, c3, Ki, k3)
+            y3, yd3, th3, thd3 = y + 0.5 * h * yd2, yd + 0.5 * h * a2, th + 0.5 * h * thd2, thd + 0.5 * h * q2
+            a3, q3 = _coupled_acc(y3, yd3, th3, thd3, f2, m, l, b, g, M, Ci, c3, Ki, k3)
+            y4, yd4, th4, thd4 = y + h * yd3, yd + h * a3, th + h * thd3, thd + h * q3
+            a4, q4 = _coupled_acc(y4, yd4, th4, thd4, f4, m, l, b, g, M, Ci, c3, Ki, k3)
+            y += h * (yd + 2.0 * yd2 + 2.0 * yd3 + yd4) / 6.0
+            yd += h * (a1 + 2.0 * a2 + 2.0 * a3 + a4) / 6.0
+            th += h * (thd + 2.0 * thd2 + 2.0 * thd3 + thd4) / 6.0
+            thd += h * (q1 + 2.0 * q2 + 2.0 * q3 + q4) / 6.0
+    return out
+
+
+@nb.njit(cache=True, inline="always")
+def _rig_rhs(x, xd, th, thd, u, m, l, b, g, wn, zeta, servo_gain):
+    """Servo platform and the pendulum on it: (x', x'', theta', theta'')."""
+    xdd = wn * wn * (servo_gain * u - x) - 2.0 * zeta * wn * xd
+    thdd = -(_friction(thd, b[0], b[1], b[2]) + m * l * (g + xdd) * math.sin(th)) / (m * l * l)
+    return xd, xdd, thd, thdd
+
+
+@nb.njit(cache=True, inline="always")
+def _interface_force(xd, xdd, th, thd, thdd, M2, C2, m, l):
+    """Eq. (4): force the platform and pendulum need from the actuator [N]."""
+    return (M2 + m) * xdd + C2 * xd + m * l * (thdd * math.sin(th) + thd * thd * math.cos(th))
+
+
+@nb.njit(cache=True, inline="always")
+def _ramp(cmd, q):
+    """The actuator's command input: commands ramped linearly between ticks, at tick position ``q``."""
+    if q <= 0.0:
+        return cmd[0]
+    j = int(math.floor(q))
+    return cmd[j] + (q - j) * (cmd[j + 1] - cmd[j])
+
+
+@nb.njit(cache=True)
+def rig_truth(z, m, l, b, g, M1, C1, K, k3, M2, C2, gain, gain_fs, amps, freqs, dt, nsub, n0, n,
+              delay, wn, zeta, servo_gain, fs_noise, drift_c2):
+    """A substructuring test: controller at ``dt``, rig RK4 ``nsub`` steps per tick.
+
+    Controller tick k: read the load cell (the interface force averaged over
+    the last tick, times ``gain_fs``, plus ``fs_noise[k]``), one RK4 step of
+    ``M1 y'' + C1 y' + K y + k3 y^3 = gain Fe(t) - Fs`` with Fs held, send
+    ``y*`` as the command (ramped linearly over the next tick). The platform
+    follows the command through a transport delay ``delay`` and the second-order servo.
+
+    Returns (n, 5): x [m], theta [rad], Fs measured [N], y_cmd [m], Fe [N].
+    """
+    out = np.empty((n, 5))
+    ys, yds = 0.0, 0.0
+    x, xd, th, thd = 0.0, 0.0, z[2], z[3]
+    h = dt / nsub
+    nt = n0 + n
+    cmd = np.zeros(nt + 1)
+    fs_meas = 0.0
+    total = max((n - 1) * dt, dt)
+    for k in range(nt):
+        t = k * dt
+        c2 = C2 * (1.0 + drift_c2 * max(t - n0 * dt, 0.0) / total)
+        if k >= n0:
+            out[k - n0, 0], out[k - n0, 1], out[k - n0, 2] = x, th, fs_meas
+            out[k - n0, 3], out[k - n0, 4] = ys, _tones(t, amps, freqs)
+        if k == nt - 1:
+            break
+        # Controller: Eq. (3), RK4 over the tick with the measured force held.
+        f0 = gain * _tones(t, amps, freqs) - fs_meas
+        fh = gain * _tones(t + 0.5 * dt, amps, freqs) - fs_meas
+        f1 = gain * _tones(t + dt, amps, freqs) - fs_meas
+        a1 = (f0 - C1 * yds - K * ys - k3 * ys ** 3) / M1
+        p2, v2 = ys + 0.5 * dt * yds, yds + 0.5 * dt * a1
+        a2 = (fh - C1 * v2 - K * p2 - k3 * p2 ** 3) / M1
+        p3, v3 = ys + 0.5 * dt * v2, yds + 0.5 * dt * a2
+        a3 = (fh - C1 * v3 - K * p3 - k3 * p3 ** 3) / M1
+        p4, v4 = ys + dt * v3, yds + dt * a3
+        a4 = (f1 - C1 * v4 - K * p4 - k3 * p4 ** 3) / M1
+        ys_next = ys + dt * (yds + 2.0 * v2 + 2.0 * v3 + v4) / 6.0
+        yds = yds + dt * (a1 + 2.0 * a2 + 2.0 * a3 + a4) / 6.0
+        ys = ys_next
+        # Rig over the tick; the load cell integrates the true interface force (trapezoid on the fine grid).
+        cmd[k + 1] = ys
+        acc = 0.0
+        for j in range(nsub):
+            tj = t + j * h
+            u1 = _ramp(cmd, (tj - delay) / dt)
+            u2 = _ramp(cmd, (tj + 0.5 * h - delay) / dt)
+            u4 = _ramp(cmd, (tj + h - delay) / dt)
+            dx1, dv1, dt1, dw1 = _rig_rhs(x, xd, th, thd, u1, m, l, b, g, wn, zeta, servo_gain)
+            fa = _interface_force(xd, dv1, th, thd, dw1, M2, c2, m, l)
+            dx2, dv2, dt2, dw2 = _rig_rhs(x + 0.5 * h * dx1, xd + 0.5 * h * dv1, th + 0.5 * h * dt1, thd + 0.5 * h * dw1, u2, m, l, b, g, wn, zeta, servo_gain)
+            dx3, dv3, dt3, dw3 = _rig_rhs(x + 0.5 * h * dx2, xd + 0.5 * h * dv2, th + 0.5 * h * dt2, thd + 0.5 * h * dw2, u2, m, l, b, g, wn, zeta, servo_gain)
+            dx4, dv4, dt4, dw4 = _rig_rhs(x + h * dx3, xd + h * dv3, th + h * dt3, thd + h * dw3, u4, m, l, b, g, wn, zeta, servo_gain)
+            x += h * (dx1 + 2.0 * dx2 + 2.0 * dx3 + dx4) / 6.0
+            xd += h * (dv1 + 2.0 * dv2 + 2.0 * dv3 + dv4) / 6.0
+            th += h * (dt1 + 2.0 * dt2 + 2.0 * dt3 + dt4) / 6.0
+            thd += h * (dw1 + 2.0 * dw2 + 2.0 * dw3 + dw4) / 6.0
+            _, dvb, _, dwb = _rig_rhs(x, xd, th, thd, u4, m, l, b, g, wn, zeta, servo_gain)
+            fb = _interface_force(xd, dvb, th, thd, dwb, M2, c2, m, l)
+            acc += 0.5 * (fa + fb) * h
+        fs_meas = gain_fs * acc / dt + fs_noise[k + 1]
+    return out
+
+
+# -- records ----------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Case:
+    """One generated record.
+
+    Attributes
+    ----------
+    kind : {"free_decay", "forced", "substructured"}
+    effects : dict
+        Vocabulary causes hidden in the truth: ``{cause: truth value}`` in the parameter's unit.
+    extra : dict
+        Out-of-vocabulary effects (:data:`OUT_OF_VOCABULARY`): ``{name: magnitude}``.
+    rate : float
+        Sample rate [Hz] (the controller rate of substructured records).
+    duration : float
+        Recorded length [s].
+    seed : int
+        Seed of noise and drift.
+    theta_init : float
+        Pendulum angle at release (free decay) or at the start of the transient [rad].
+    tones : tuple of (float, float)
+        Force tones (amplitude [N], frequency [Hz]); the first is the nominal forcing.
+    transient : float
+        Seconds simulated before recording (forced, substructured).
+    """
+
+    kind: str
+    effects: dict = field(default_factory=dict)
+    extra: dict = field(default_factory=dict)
+    rate: float = 500.0
+    duration: float = 16.0
+    seed: int = 0
+    theta_init: float = 1.0
+    tones: tuple = ((5.0, 2.2), (2.0, 1.3))
+    transient: float = 20.0
+
+    @property
+    def label(self) -> str:
+        """The answer a perfect diagnosis gives: causes joined by ``+``, or ``none``."""
+        return "+".join(sorted(self.effects)) or "none"
+
+
+def nominal_for(kind: str) -> ModelParams:
+    """The user's nominal model of a generated record: Table IV; Fig. 9(a) forcing when forced."""
+    return TABLE_IV if kind == "free_decay" else FIG9_PO
+
+
+def generate(case: Case) -> Record:
+    """The measured record of ``case`` (nominal model in its metadata, effects hidden)."""
+    kind = case.kind
+    if kind not in ("free_decay", "forced", "substructured"):
+        raise ConfigError(f"kind {kind!r}; choose free_decay, forced or substructured")
+    for name in case.extra:
+        if name not in OUT_OF_VOCABULARY or kind not in OUT_OF_VOCABULARY[name][0]:
+            raise ConfigError(f"out-of-vocabulary effect {name!r} does not apply to kind {kind!r}")
+    nominal = nominal_for(kind)
+    truth = nominal_values(nominal)
+    for cause, value in case.effects.items():
+        eff = EFFECTS[cause]
+        if kind not in eff.kinds:
+            raise ConfigError(f"cause {cause!r} does not apply to kind {kind!r}")
+        truth[eff.param] = float(value)
+    rng = np.random.default_rng(case.seed)
+    dt = 1.0 / case.rate
+    nsub = max(1, math.ceil(dt / FINE_STEP - 1e-9))
+    h = dt / nsub
+    n = int(round(case.duration * case.rate)) + 1
+    t = np.arange(n) * dt
+    b = np.array([truth["b1"], truth["b2"], truth["b3"]])
+    m, l, g = truth["m"], truth["l"], truth["g"]
+    ex = case.extra
+    if kind == "free_decay":
+        theta = free_decay_truth(case.theta_init, 0.0, m, l, b, g, h, nsub, n, ex.get("damping_drift", 0.0))
+        data = pd.DataFrame({"t": t, "theta": _encoder(theta + truth["theta_offset"], ex, rng)})
+        return Record(data, kind, nominal, name=f"testbench:{case.label}:{case.seed}")
+    amps = np.array([a for a, _ in case.tones], dtype=np.float64)
+    freqs = np.array([f for _, f in case.tones], dtype=np.float64)
+    n0 = int(round(case.transient * case.rate))
+    z = np.array([0.0, 0.0, case.theta_init, 0.0])
+    if kind == "forced":
+        rec = forced_truth(z, m, l, b, g, truth["M"], truth["C"], ex.get("cubic_damping", 0.0), truth["K"], truth["k3"],
+                           truth["gain"], amps, freqs, h, nsub, n0, n, ex.get("damping_drift", 0.0), ex.get("stiffness_drift", 0.0))
+        fe = _tones_array(t + n0 * dt, amps, freqs)
+        data = pd.DataFrame({
+            "t": t,
+            "theta": _encoder(rec[:, 1] + truth["theta_offset"], ex, rng),
+            "y": _lvdt(rec[:, 0], rng),
+            "Fe": fe + rng.normal(0.0, FORCE_NOISE, n) + _drift(n, FORCE_DRIFT, rng),
+        })
+        return Record(data, kind, nominal, forcing={"alpha": nominal.alpha, "fe": nominal.fe}, name=f"testbench:{case.label}:{case.seed}")
+    # Substructured: the numerical model's M1, C1 are code (nominal split); M, C effects move them.
+    M1 = truth["M"] - nominal.M2
+    C1 = truth["C"] - nominal.C2
+    tau_nominal = SERVO_DELAY + 2.0 * SERVO_ZETA / SERVO_WN
+    # An actuator_delay effect sets the true effective delay; the servo's own share stays.
+    delay = truth["tau"] - (tau_nominal - SERVO_DELAY) if "actuator_delay" in case.effects else SERVO_DELAY
+    fs_noise = rng.normal(0.0, FORCE_NOISE, n0 + n) + np.concatenate([np.zeros(n0), _drift(n, FORCE_DRIFT, rng)])
+    rec = rig_truth(z, m, l, b, g, M1, C1, truth["K"], truth["k3"], truth["M2"], truth["C2"], truth["gain"], truth["gain_Fs"],
+                    amps, freqs, dt, nsub, n0, n, delay, SERVO_WN, SERVO_ZETA, 1.0 - ex.get("servo_gain", 0.0), fs_noise,
+                    ex.get("damping_drift", 0.0))
+    data = pd.DataFrame({
+        "t": t,
+        "theta": _encoder(rec[:, 1] + truth["theta_offset"], ex, rng),
+        "y": _lvdt(rec[:, 0], rng),
+        "Fe": rec[:, 4],
+        "y_cmd": rec[:, 3],
+        "Fs": rec[:, 2],
+    })
+    return Record(data, kind, nominal, tau=tau_nominal, forcing={"alpha": nominal.alpha, "fe": nominal.fe},
+                  name=f"testbench:{case.label}:{case.seed}")
+
+
+def _tones_array(t: np.ndarray, amps: np.ndarray, freqs: np.ndarray) -> np.ndarray:
+    return sum(a * np.sin(2.0 * math.pi * f * t) for a, f in zip(amps, freqs))
+
+
+def _drift(n: int, final_sigma: float, rng: np.random.Generator) -> np.ndarray:
+    """A random walk reaching about ``final_sigma`` at the end of ``n`` samples."""
+    return np.cumsum(rng.normal(0.0, final_sigma / math.sqrt(n), n))
+
+
+def _encoder(theta: np.ndarray, extra: dict, rng: np.random.Generator) -> np.ndarray:
+    a = extra.get("encoder_nonlinearity", 0.0)
+    return ENCODER_STEP * np.round((theta + a * np.sin(20.0 * theta)) / ENCODER_STEP)
+
+
+def _lvdt(y: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    noisy = y + rng.normal(0.0, LVDT_NOISE, y.shape) + _drift(len(y), LVDT_DRIFT, rng)
+    return LVDT_STEP * np.round(noisy / LVDT_STEP)
+
+
+# -- populations: random cases for calibration (seed range A) and the benchmark (seed range B) ----------
+
+#: Identifiable ranges of single effects per kind: cause -> (mode, lo, hi); the truth is
+#: nominal x U(lo, hi) ("x"), U(lo, hi) ("abs"), or the record's nominal + U(lo, hi) ("add").
+RANGES = {
+    "free_decay": {
+        "coulomb_friction": ("x", 2.0, 5.0),
+        "viscous_damping": ("x", 2.0, 5.0),
+        "quadratic_drag": ("x", 3.0, 8.0),
+        "pendulum_length": ("x", 1.03, 1.10),
+        "angle_offset": ("abs", 0.005, 0.02),
+    },
+    "forced": {
+        "oscillator_damping": ("x", 1.2, 1.5),
+        "oscillator_stiffness": ("x", 1.04, 1.10),
+        "oscillator_mass": ("x", 1.05, 1.12),
+        "spring_hardening": ("abs", 8e5, 2e6),
+        "forcing_gain": ("x", 1.05, 1.15),
+        "pendulum_length": ("x", 1.03, 1.08),
+        "angle_offset": ("abs", 0.01, 0.02),
+    },
+    "substructured": {
+        "oscillator_damping": ("x", 1.2, 1.5),
+        "oscillator_stiffness": ("x", 1.04, 1.10),
+        "oscillator_mass": ("x", 1.05, 1.12),
+        "spring_hardening": ("abs", 8e5, 2e6),
+        "forcing_gain": ("x", 1.08, 1.15),
+        "pendulum_length": ("x", 1.03, 1.08),
+        "angle_offset": ("abs", 0.07, 0.10),
+        "actuator_delay": ("add", 0.003, 0.008),
+        "platform_mass": ("x", 1.3, 1.6),
+        "platform_damping": ("x", 1.3, 1.6),
+        "force_sensor_gain": ("x", 1.15, 1.3),
+    },
+}
+#: Causes that a pendulum at rest (theta exactly constant) cannot show.
+PENDULUM_CAUSES = {"coulomb_friction", "viscous_damping", "quadratic_drag", "pendulum_length", "angle_offset"}
+#: Pairs drawn for two-effect records (effects on different parts of the model).
+PAIRS = {
+    "free_decay": [("pendulum_length", "coulomb_friction"), ("pendulum_length", "viscous_damping"), ("angle_offset", "quadratic_drag")],
+    "forced": [("oscillator_damping", "pendulum_length"), ("spring_hardening", "forcing_gain"), ("oscillator_stiffness", "angle_offset")],
+    "substructured": [("actuator_delay", "oscillator_damping"), ("platform_mass", "pendulum_length"), ("spring_hardening", "force_sensor_gain")],
+}
+#: Magnitude ranges of the out-of-vocabulary effects.
+OOV_RANGES = {
+    "encoder_nonlinearity": (0.003, 0.006),
+    "damping_drift": (1.0, 2.0),
+    "stiffness_drift": (0.05, 0.10),
+    "cubic_damping": (200.0, 500.0),
+    "servo_gain": (0.05, 0.10),
+}
+DURATION = {"free_decay": 20.0, "forced": 16.0, "substructured": 12.0}
+#: Shares of a population: clean, one effect, two effects, out of vocabulary.
+MIX = (0.2, 0.5, 0.15, 0.15)
+
+
+def truth_value(kind: str, cause: str, u: float, rate: float) -> float:
+    """The truth of ``cause`` at position ``u`` in [0, 1] of its identifiable range."""
+    mode, lo, hi = RANGES[kind][cause]
+    v = lo + u * (hi - lo)
+    if mode == "abs":
+        return v
+    if mode == "add":
+        return SERVO_DELAY + 2.0 * SERVO_ZETA / SERVO_WN + v
+    return v * nominal_values(nominal_for(kind))[EFFECTS[cause].param]
+
+
+def draw_case(seed: int, category: str | None = None, kind: str | None = None) -> tuple[str, Case]:
+    """A random case of the population: ``(category, case)``, category in clean/single/pair/oov.
+
+    Random: kind, category (shares :data:`MIX`), cause(s) and magnitude(s) within
+    the identifiable ranges, sampling rate (500 Hz or 2 kHz), initial angle
+    (forced records start at rest in a quarter of the cases: theta stays exactly 0),
+    a second or third force tone; the noise realisation is seeded by ``seed``.
+    """
+    rng = np.random.default_rng([seed, 11])
+    kind = kind or str(rng.choice(["free_decay", "forced", "substructured"]))
+    category = category or str(rng.choice(["clean", "single", "pair", "oov"], p=MIX))
+    rate = float(rng.choice([500.0, 2000.0]))
+    tones = ((5.0, 2.2), (float(rng.uniform(1.5, 3.0)), float(rng.uniform(1.1, 1.6))))
+    if rng.uniform() < 0.3:
+        tones = tones + ((float(rng.uniform(0.5, 1.5)), float(rng.uniform(2.6, 3.5))),)
+    at_rest = kind == "forced" and category in ("clean", "single") and rng.uniform() < 0.25
+    effects: dict[str, float] = {}
+    extra: dict[str, float] = {}
+    if category == "single":
+        choices = [c for c in RANGES[kind] if not (at_rest and c in PENDULUM_CAUSES)]
+        cause = str(rng.choice(choices))
+        effects[cause] = truth_value(kind, cause, rng.uniform(), rate)
+    elif category == "pair":
+        a, b = PAIRS[kind][int(rng.integers(len(PAIRS[kind])))]
+        effects = {a: truth_value(kind, a, rng.uniform(), rate), b: truth_value(kind, b, rng.uniform(), rate)}
+    elif category == "oov":
+        names = [k for k, (kinds, _) in OUT_OF_VOCABULARY.items() if kind in kinds]
+        name = str(rng.choice(names))
+        extra[name] = float(rng.uniform(*OOV_RANGES[name]))
+    theta_init = 0.0 if at_rest else float(rng.uniform(0.6, 1.5) if kind == "free_decay" else rng.uniform(0.2, 0.5))
+    duration = DURATION[kind] * (0.5 if rate > 1000.0 else 1.0)  # 2 kHz records: same samples budget halved
+    return category, Case(kind, effects, extra, rate, duration, int(seed), theta_init, tones)

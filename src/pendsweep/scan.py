@@ -1,0 +1,239 @@
+"""One scan engine for sweeps and Hopf scans: units, a store, resume, progress, executors.
+
+A *scan* is a set of independent *units* of work (a sweep's ``(direction,
+point, start)``, a Hopf scan's ``(mass_point, point, method)``), each with a
+string key. The scan describes itself through the small :class:`Scan`
+protocol; :func:`run_scan` does the rest, the same way for every kind:
+
+1. checks the number of local jobs and the work estimate (integration steps,
+   :meth:`Scan.work`) against a limit, before anything else;
+2. opens the crash-safe :class:`~pendsweep.results.ResultStore` (when an
+   output path is given; it takes the output's lock, so a second process
+   writing the same output is refused) and reads what an earlier run finished;
+3. asks the scan for the tasks that cover the unfinished units (a task may
+   recompute finished units, e.g. to rebuild a batched chunk exactly as the
+   first run built it; their results are dropped, not stored twice);
+4. runs the tasks on an :class:`~pendsweep.executors.Executor`, writing each
+   finished unit to the store at once and advancing the progress bar;
+5. merges the parts into the final file and releases the lock.
+
+Resume is bit-identical when every task computes its units the same way
+whichever units were already done: scans cut their tasks from the full unit
+list by index and rerun a partly finished task whole (see
+:meth:`pendsweep.sweep.SweepScan.tasks`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Callable, Iterable, Protocol
+
+from .errors import ConfigError
+from .executors import Executor, LocalExecutor
+
+if TYPE_CHECKING:  # imported where used: the CLI reads DEFAULT_MAX_WORK at start-up without pandas
+    import pandas as pd
+
+    from .results import ResultStore
+
+
+@dataclass
+class UnitResult:
+    """One finished unit: its key, its rows, and the state to resume from (may be empty)."""
+
+    key: str
+    rows: pd.DataFrame
+    state: list[float] = field(default_factory=list)
+
+
+@dataclass
+class Finished:
+    """What an earlier run persisted: the rows and, per finished unit key, its final state."""
+
+    rows: pd.DataFrame
+    states: dict[str, list[float]]
+
+    @property
+    def keys(self) -> set[str]:
+        return set(self.states)
+
+
+Task = Callable[[], Iterable[UnitResult]]
+
+#: Largest work estimate [integration steps] run without ``--max-work`` or ``--yes``
+#: (about 3 core-minutes of the batched emulated kernel, hours of the substructured loop).
+DEFAULT_MAX_WORK = 1e10
+
+
+@dataclass(frozen=True)
+class Work:
+    """A scan's work estimate: ``units x periods x steps (+ other)`` integration steps.
+
+    Attributes
+    ----------
+    units : int
+        Integrations (points x starts x branches; Hopf: points x trial amplitudes).
+    periods : float
+        Forcing periods per integration.
+    steps : float
+        Integration steps per forcing period (mean over the points).
+    other : float
+        Steps of work that is not a forcing-period integration (e.g. Floquet monodromies).
+    """
+
+    units: int
+    periods: float
+    steps: float
+    other: float = 0.0
+
+    @property
+    def total(self) -> float:
+        return self.units * self.periods * self.steps + self.other
+
+    def describe(self) -> str:
+        text = f"{self.total:.3g} integration steps ({self.units} runs x {self.periods:.4g} periods x {self.steps:.4g} steps"
+        return text + (f" + {self.other:.3g} other)" if self.other else ")")
+
+
+def check_work(work: Work, max_work: float | None) -> None:
+    """Refuse (``ConfigError``, exit 2) a scan whose estimate exceeds ``max_work`` (None: no limit)."""
+    if max_work is not None and work.total > max_work:
+        raise ConfigError(
+            f"this scan needs about {work.describe()}, more than the limit of {max_work:.3g}; "
+            f"pass --max-work {_round_up(work.total)} (or --yes) to run it"
+        )
+
+
+def _round_up(x: float) -> str:
+    """``x`` rounded up to one significant digit, e.g. ``2e11``."""
+    exponent = math.floor(math.log10(x)) if x > 0 else 0
+    mantissa = math.ceil(x / 10**exponent * (1 - 1e-12))
+    if mantissa == 10:
+        mantissa, exponent = 1, exponent + 1
+    return f"{mantissa}e{exponent}"
+
+
+def check_jobs(n_jobs: int) -> None:
+    """Accept ``n_jobs`` = -1 (all cores) or 1..1024 local workers; else ``ConfigError`` (exit 2)."""
+    if isinstance(n_jobs, bool) or not isinstance(n_jobs, int) or not (n_jobs == -1 or 1 <= n_jobs <= 1024):
+        raise ConfigError(f"--jobs = {n_jobs!r}: give a number of workers from 1 to 1024, or -1 for all cores")
+
+
+def sample_indices(n: int, at_most: int = 101) -> list[int]:
+    """Up to ``at_most`` indices spread evenly over ``range(n)`` (ends included), for estimates."""
+    if n <= at_most:
+        return list(range(n))
+    return sorted({round(k * (n - 1) / (at_most - 1)) for k in range(at_most)})
+
+
+class Scan(Protocol):
+    """What :func:`run_scan` needs to know about a scan."""
+
+    #: Progress-bar label.
+    desc: str
+    #: Columns that identify one row; the final file is sorted by them.
+    row_columns: list[str]
+
+    def metadata(self) -> dict[str, Any]:
+        """Provenance and resolved configuration (:func:`pendsweep.results.run_metadata`)."""
+        ...
+
+    def n_units(self) -> int:
+        """Number of units of the whole scan."""
+        ...
+
+    def work(self) -> Work:
+        """Estimated integration work of the whole scan."""
+        ...
+
+    def tasks(self, finished: Finished, n_jobs: int) -> tuple[list[Task], int]:
+        """Tasks covering every unit not in ``finished``, and the local thread count to run them on."""
+        ...
+
+    def order(self, df: pd.DataFrame) -> pd.DataFrame:
+        """The scan's rows in their final order."""
+        ...
+
+
+def run_scan(
+    scan: Scan,
+    output: Path | None = None,
+    *,
+    n_jobs: int = 1,
+    progress: bool = False,
+    overwrite: bool = False,
+    executor: Executor | None = None,
+    max_work: float | None = DEFAULT_MAX_WORK,
+) -> pd.DataFrame:
+    """Run (or resume) ``scan`` and return its rows in order (module docstring).
+
+    Parameters
+    ----------
+    scan : Scan
+    output : Path, optional
+        Parquet file. Finished units are persisted as they come and a rerun
+        with the same configuration resumes; without it rows are only returned.
+    n_jobs : int
+        Local workers (-1: all cores), as the scan's tasks use them.
+    progress : bool
+        Progress bar (units done, rate, ETA) on stderr.
+    overwrite : bool
+        Discard earlier results at ``output`` instead of resuming.
+    executor : Executor, optional
+        Where tasks run (default: threads of this process).
+    max_work : float or None
+        Refuse scans whose work estimate exceeds this many integration steps
+        (None: no limit).
+
+    Raises
+    ------
+    ConfigError
+        Bad ``n_jobs``, or more work than ``max_work``.
+    pendsweep.results.OutputLocked
+        Another process is writing ``output``.
+    """
+    import pandas as pd
+
+    from .results import ResultStore
+
+    check_jobs(n_jobs)
+    check_work(scan.work(), max_work)
+    if output is None:
+        return _run(scan, None, Finished(pd.DataFrame(), {}), n_jobs, progress, executor)
+    store = ResultStore(output, scan.metadata(), scan.row_columns, overwrite=overwrite)
+    try:
+        rows, states = store.done()
+        if store.complete:
+            return scan.order(rows)
+        return _run(scan, store, Finished(rows, states), n_jobs, progress, executor)
+    finally:
+        store.close()
+
+
+def _run(scan: Scan, store: ResultStore | None, finished: Finished, n_jobs, progress, executor) -> pd.DataFrame:
+    import pandas as pd
+
+    from tqdm.auto import tqdm
+
+    done = finished.keys
+    frames = [finished.rows] if not finished.rows.empty else []
+    tasks, local_jobs = scan.tasks(finished, n_jobs)
+    bar = tqdm(total=scan.n_units(), initial=len(done), unit="pt", disable=not progress, desc=scan.desc)
+    try:
+        for unit in (executor or LocalExecutor()).map_unordered(tasks, local_jobs):
+            if unit.key in done:
+                continue  # recomputed only to rebuild its task as the first run built it
+            done.add(unit.key)
+            frames.append(unit.rows)
+            if store is not None:
+                store.add(unit.rows, unit.key, unit.state)
+            bar.update(1)
+    finally:
+        bar.close()
+        if store is not None:
+            store.flush()
+    if store is not None:
+        return scan.order(store.finalize())
+    return scan.order(pd.concat(frames, ignore_index=True))

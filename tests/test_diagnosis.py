@@ -1,0 +1,176 @@
+"""Diagnosis on independently generated records (issue 11).
+
+Records come from :mod:`pendsweep.diagnose.testbench`, which shares no
+integration code with the replay kernels: another RK4 at 0.1 ms with the
+friction sign per stage, Eqs. (1)-(2) solved by Cramer's rule, a substructuring
+rig with a second-order servo behind a transport delay and an integrating load
+cell, Table III encoder quantisation, LVDT and load-cell noise and drift. Seeds
+come from the test range (B); the verdict thresholds were chosen on the
+calibration range (A) only.
+"""
+
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from pendsweep.cli import main
+from pendsweep.data import find_free_swing_data, write_record
+from pendsweep.diagnose import EFFECTS, Replay, diagnose
+from pendsweep.diagnose.fit import block_test, Fit
+from pendsweep.diagnose.testbench import CALIBRATION_SEEDS, TEST_SEEDS, Case, generate, truth_value
+
+SEED = TEST_SEEDS[0] + 101
+_real = find_free_swing_data()
+needs_real = pytest.mark.skipif(_real is None, reason="shared/data/measured/free-swing-rotary-pendulum not present")
+
+
+def run(case):
+    d = diagnose(Replay(generate(case)))
+    return d, d.to_json()
+
+
+def assert_estimates(js, effects, rel=0.1):
+    for cause, truth in effects.items():
+        p = EFFECTS[cause].param
+        tol = 0.002 if p == "theta_offset" else rel * abs(truth)
+        assert abs(js["estimate"][p] - truth) < tol, (cause, js["estimate"][p], truth)
+
+
+def test_seed_ranges_do_not_overlap():
+    assert SEED in TEST_SEEDS and not set(TEST_SEEDS) & set(CALIBRATION_SEEDS)
+
+
+def test_block_test_carries_information_on_zero_blocks():
+    """Blocks where both models are exact (a resting, quantised pendulum) neither break nor decide the test."""
+
+    def fit(blocks):
+        return Fit((), {}, {}, 0.0, 0.0, [], np.array(blocks), [], 0.0)
+
+    before = fit([0.0] * 8 + list(np.linspace(1.0, 2.0, 12)))
+    better = fit([0.0] * 8 + list(np.linspace(0.01, 0.02, 12)))
+    assert block_test(before, better) < 1e-3
+    assert block_test(better, before) > 0.5
+    assert block_test(before, before) == 1.0  # identical models: no evidence either way
+
+
+def test_pendulum_at_rest_effect_found():
+    """Forced below the Hopf boundary from rest: theta is exactly constant, y still carries the effect."""
+    case = Case("forced", {"oscillator_damping": truth_value("forced", "oscillator_damping", 0.5, 500.0)},
+                rate=500.0, seed=SEED, theta_init=0.0)
+    d, js = run(case)
+    assert np.ptp(d.replay.record.channel("theta")) == 0.0 and d.replay.constant == ("theta",)
+    assert js["cause"] == "oscillator_damping" and js["validation"]["constant_channels"] == ["theta"]
+    assert_estimates(js, case.effects)
+    assert js["explained_share"] > 0.9 and not js["unexplained"]
+
+
+@pytest.mark.parametrize("kind, rate", [("free_decay", 500.0), ("forced", 2000.0), ("substructured", 500.0), ("forced", 500.0)])
+def test_clean_records_give_none_and_nothing_unexplained(kind, rate):
+    theta_init = 0.0 if (kind, rate) == ("forced", 500.0) else (1.0 if kind == "free_decay" else 0.3)
+    duration = 6.0 if rate > 1000 else (12.0 if kind == "substructured" else 16.0)
+    d, js = run(Case(kind, rate=rate, seed=SEED + 1, theta_init=theta_init, duration=duration))
+    assert js["cause"] == "none" and js["estimate"] == {} and js["gain"] == 0.0
+    assert js["unexplained"] is False and js["explained_share"] == 0.0
+
+
+def test_decay_that_stops_early_is_coulomb_and_resting_tail_is_left_out():
+    """Twelve times the nominal Coulomb friction stops a 0.4 rad swing within about 13 s of the
+    20 s record: the comparison covers the moving part only, and the dry friction is named."""
+    b1 = 12.0 * truth_value("free_decay", "coulomb_friction", 0.0, 500.0) / 2.0
+    case = Case("free_decay", {"coulomb_friction": b1}, rate=500.0, seed=SEED + 2, theta_init=0.4, duration=20.0)
+    d, js = run(case)
+    theta = d.replay.meas["theta"]
+    assert np.ptp(theta[-2000:]) == 0.0  # the pendulum rests for the last 4 s at least
+    assert js["validation"]["compared_seconds"] < js["validation"]["record_seconds"] - 3.0
+    assert js["cause"] == "coulomb_friction"
+    assert_estimates(js, case.effects)
+
+
+def test_single_effect_with_three_tones():
+    case = Case("forced", {"oscillator_stiffness": truth_value("forced", "oscillator_stiffness", 0.3, 500.0)},
+                rate=500.0, duration=12.0, seed=SEED + 3, theta_init=0.3, tones=((5.0, 2.2), (2.0, 1.3), (1.0, 3.1)))
+    _, js = run(case)
+    assert js["cause"] == "oscillator_stiffness"
+    assert_estimates(js, case.effects)
+
+
+def test_servo_rig_single_effect_gets_no_spurious_second_cause():
+    """The replay's pure-delay actuator differs in form from the rig's servo; the verdict stays one cause."""
+    case = Case("substructured", {"platform_mass": truth_value("substructured", "platform_mass", 0.4, 500.0)},
+                rate=500.0, seed=SEED + 4, theta_init=0.3, duration=12.0)
+    _, js = run(case)
+    assert js["cause"] == "platform_mass"
+    assert_estimates(js, case.effects)
+
+
+@pytest.mark.parametrize(
+    "kind, effects",
+    [
+        ("free_decay", {"pendulum_length": ("x", 0.5), "coulomb_friction": ("x", 0.3)}),
+        ("forced", {"oscillator_damping": ("x", 0.6), "pendulum_length": ("x", 0.5)}),
+    ],
+)
+def test_two_effects_named(kind, effects):
+    truths = {c: truth_value(kind, c, u, 500.0) for c, (_, u) in effects.items()}
+    case = Case(kind, truths, rate=500.0, seed=SEED + 5, theta_init=1.0 if kind == "free_decay" else 0.3,
+                duration=20.0 if kind == "free_decay" else 16.0)
+    _, js = run(case)
+    assert set(js["cause"].split("+")) == set(truths)
+    assert_estimates(js, truths)
+
+
+@pytest.mark.parametrize(
+    "kind, extra",
+    [("free_decay", {"encoder_nonlinearity": 0.004}), ("forced", {"damping_drift": 1.5}), ("substructured", {"servo_gain": 0.08})],
+)
+def test_effect_outside_the_vocabulary_is_flagged_unexplained(kind, extra):
+    case = Case(kind, {}, extra, rate=500.0, seed=SEED + 6, theta_init=1.0 if kind == "free_decay" else 0.3,
+                duration=12.0 if kind == "substructured" else 16.0)
+    _, js = run(case)
+    assert js["unexplained"] is True
+    sig = js["residual_signature"]["record"]
+    assert all(sig[c]["lag1"] > 0.5 for c in sig if isinstance(sig[c], dict))  # structured, not sensor noise
+
+
+def test_several_records_of_one_rig_one_answer(tmp_path):
+    """Three free decays of one pendulum (different releases and encoder offsets): one cause set,
+    validated by leave-one-record-out prediction, through the CLI."""
+    b2 = truth_value("free_decay", "viscous_damping", 0.5, 500.0)
+    paths = []
+    for k, theta_init in enumerate((0.7, 1.1, 1.5)):
+        rec = generate(Case("free_decay", {"viscous_damping": b2}, rate=250.0, seed=SEED + 10 + k, theta_init=theta_init, duration=10.0))
+        paths += [str(write_record(rec, tmp_path / f"r{k}.csv")[0])]
+    # The three damping laws and the length: the candidates a free decay can confuse.
+    causes = ["--cause", "viscous_damping", "--cause", "coulomb_friction", "--cause", "quadratic_drag", "--cause", "pendulum_length"]
+    res = CliRunner().invoke(main, ["diagnose", *paths, *causes, "--json", str(tmp_path / "v.json")])
+    assert res.exit_code == 0, res.output
+    js = json.loads((tmp_path / "v.json").read_text())
+    assert js["cause"] == "viscous_damping" and js["estimate"]["b2"] == pytest.approx(b2, rel=0.1)
+    val = js["validation"]
+    assert val["method"] == "leave-one-record-out" and len(val["cross_record_error"]) == 3
+    assert max(val["cross_record_error"]) < 0.2 * min(val["cross_record_error_nominal"])
+
+
+@needs_real
+def test_real_free_swings_get_one_answer(tmp_path):
+    """The three shared real records: one cause set for the rig, cross-record errors reported.
+
+    Candidates: the three damping laws and the length (the issue's three per-record verdicts
+    differed in the damping law); the full vocabulary gives the same verdict (docs).
+    """
+    paths = [str(_real / f"free_swing_0{k}.txt") for k in (1, 2, 3)]
+    causes = ["--cause", "viscous_damping", "--cause", "coulomb_friction", "--cause", "quadratic_drag", "--cause", "pendulum_length"]
+    res = CliRunner().invoke(main, ["diagnose", *paths, *causes, "--json", str(tmp_path / "v.json"), "--report", str(tmp_path / "rep")])
+    assert res.exit_code == 0, res.output
+    js = json.loads((tmp_path / "v.json").read_text())
+    assert js["cause"] != "none" and "pendulum_length" in js["cause"].split("+")
+    # The arm's equivalent length from fit-damping is 0.0811-0.0818 m (docs/measured-data.md);
+    # the time-series fit here agrees within two of its standard errors.
+    assert abs(js["estimate"]["l"] - 0.0815) < 2 * js["uncertainty"]["l"] + 0.0005
+    assert js["explained_share"] > 0.5
+    val = js["validation"]
+    assert len(val["cross_record_error"]) == 3
+    assert all(a < 0.5 * b for a, b in zip(val["cross_record_error"], val["cross_record_error_nominal"]))
+    assert (tmp_path / "rep" / "report.md").read_text().count("cross-record prediction NRMSE") == 3
