@@ -214,6 +214,8 @@ class ModelParams:
 
     def kernel_array(self) -> np.ndarray:
         """Contiguous float64 vector of the :data:`KERNEL_FIELDS` for the kernels."""
+        import numpy as np  # imported here so that reading parameters (`pendsweep --help`) does not load numpy
+
         return np.array([getattr(self, name) for name in KERNEL_FIELDS], dtype=np.float64)
 
 

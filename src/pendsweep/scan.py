@@ -214,7 +214,6 @@ def run_scan(
 
 def _run(scan: Scan, store: ResultStore | None, finished: Finished, n_jobs, progress, executor) -> pd.DataFrame:
     import pandas as pd
-
     from tqdm.auto import tqdm
 
     done = finished.keys

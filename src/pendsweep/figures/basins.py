@@ -11,18 +11,16 @@ from pathlib import Path
 from typing import Any
 
 import matplotlib
+import numpy as np
+import pandas as pd
+from matplotlib.colors import ListedColormap
+from matplotlib.patches import Patch
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-from matplotlib.colors import ListedColormap  # noqa: E402
-from matplotlib.patches import Patch  # noqa: E402
-
-from ..basins import BasinConfig, run_basins, scan_summary, survival  # noqa: E402
-from ..maps import MapConfig, hopf_boundaries, run_map  # noqa: E402
-from ..params import PARAM_SPECS  # noqa: E402
-from . import figure  # noqa: E402
+from ..basins import BasinConfig, run_basins, scan_summary, survival
+from ..maps import MapConfig, hopf_boundaries, run_map
+from ..params import PARAM_SPECS
+from ..plotting import new_figure
+from . import figure
 
 #: Colour per motion class; periodic orbits by period.
 CLASS_COLOURS = {
@@ -51,8 +49,10 @@ def _colour(label: str) -> str:
 
 def plot_basin(rows: pd.DataFrame, summary: dict[str, Any], config: BasinConfig, output: Path) -> Path:
     """Basin map over (theta0, thetadot0) coloured by attractor, and the survival curves."""
-    fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4.6), constrained_layout=True)
+    fig = new_figure((11, 4.6))
+    ax, bx = fig.subplots(1, 2)
     table = summary["attractors"]
+
     def name(a: dict) -> str:
         if a["motion"] != "rotating":
             return a["motion"]
@@ -60,7 +60,9 @@ def plot_basin(rows: pd.DataFrame, summary: dict[str, Any], config: BasinConfig,
         return f"rotating {a['rotation_number']:+g} turn/T, {cycle}"
 
     names = [f"{name(a)} ({100 * a['fraction']:.1f}%)" for a in table]
-    palette = [c for i, c in enumerate(plt.get_cmap("tab10").colors) if i not in (3, 7)]  # red, grey: kept for unsettled
+    palette = [
+        c for i, c in enumerate(matplotlib.colormaps["tab10"].colors) if i not in (3, 7)
+    ]  # red, grey: kept for unsettled
     colours = [palette[i % len(palette)] for i in range(len(table))] + ["tab:red"]
     ids = rows["attractor"].to_numpy()
     index = np.where(ids < 0, len(table), ids)
@@ -68,8 +70,16 @@ def plot_basin(rows: pd.DataFrame, summary: dict[str, Any], config: BasinConfig,
         nt, nd = config.grid
         image = index.reshape(nt, nd).T
         extent = [rows.theta0.min(), rows.theta0.max(), rows.thetadot0.min(), rows.thetadot0.max()]
-        ax.imshow(image, origin="lower", aspect="auto", extent=extent, cmap=ListedColormap(colours),
-                  vmin=-0.5, vmax=len(colours) - 0.5, interpolation="nearest")
+        ax.imshow(
+            image,
+            origin="lower",
+            aspect="auto",
+            extent=extent,
+            cmap=ListedColormap(colours),
+            vmin=-0.5,
+            vmax=len(colours) - 0.5,
+            interpolation="nearest",
+        )
     else:
         ax.scatter(rows.theta0, rows.thetadot0, c=[colours[i] for i in index], s=4, linewidths=0)
     handles = [Patch(color=colours[i], label=n) for i, n in enumerate(names)]
@@ -79,22 +89,28 @@ def plot_basin(rows: pd.DataFrame, summary: dict[str, Any], config: BasinConfig,
     ax.set_ylabel(r"initial $\dot\theta$ [rad/s]")
     ax.set_title(f"{config.parameter} = {summary['value']:g}, y = ẏ = 0, cap {config.max_periods} periods", fontsize=9)
     t = np.arange(0, config.max_periods + 1)
-    for column, label in (("escape_periods", "irregular (not within 0.05 of its cycle)"),
-                          ("settle_periods", "unsettled (cycle repeats to 1e-3)")):
+    for column, label in (
+        ("escape_periods", "irregular (not within 0.05 of its cycle)"),
+        ("settle_periods", "unsettled (cycle repeats to 1e-3)"),
+    ):
         bx.semilogy(t, np.maximum(survival(rows[column].to_numpy(), t), 1e-5), label=label)
     esc = summary.get("escape")
     if esc:
         tt = np.linspace(esc["from"], esc["to"], 50)
         s0 = survival(rows["escape_periods"].to_numpy(), np.array([esc["from"]]))[0]
-        bx.semilogy(tt, s0 * np.exp(-esc["rate"] * (tt - esc["from"])), "k--", lw=1,
-                    label=f"escape rate {esc['rate']:.4f} ± {esc['stderr']:.4f} /period")
+        bx.semilogy(
+            tt,
+            s0 * np.exp(-esc["rate"] * (tt - esc["from"])),
+            "k--",
+            lw=1,
+            label=f"escape rate {esc['rate']:.4f} ± {esc['stderr']:.4f} /period",
+        )
     bx.axvline(100, color="0.6", lw=0.8, ls=":")
     bx.set_ylim(max(0.5 / max(summary["runs"], 1), 1e-5), 1.2)
     bx.set_xlabel("forcing periods")
     bx.set_ylabel("fraction of starts")
     bx.legend(fontsize=7)
     fig.savefig(output, dpi=150)
-    plt.close(fig)
     return output
 
 
@@ -102,20 +118,28 @@ def plot_scan(summary: dict[str, Any], output: Path) -> Path:
     """Stacked basin fractions per motion class against the parameter, and the unsettled fraction after 100 periods."""
     values = np.asarray(summary["values"])
     classes = sorted(summary["classes"], key=lambda c: list(CLASS_COLOURS).index(c) if c in CLASS_COLOURS else 99)
-    fig, ax = plt.subplots(figsize=(10, 4.6), constrained_layout=True)
-    ax.stackplot(values, [summary["classes"][c] for c in classes], labels=classes,
-                 colors=[_colour(c) for c in classes], alpha=0.85)
-    for key, style, label in (("unsettled_after_100", "k-", "unsettled (to 1e-3) after 100 periods"),
-                              ("irregular_after_100", "k--", "irregular after 100 periods")):
-        ax.errorbar(values, summary[key], yerr=summary[key + "_stderr"], fmt=style, lw=1.2, ms=2, capsize=0,
-                    label=label)
+    fig = new_figure((10, 4.6))
+    ax = fig.subplots()
+    ax.stackplot(
+        values,
+        [summary["classes"][c] for c in classes],
+        labels=classes,
+        colors=[_colour(c) for c in classes],
+        alpha=0.85,
+    )
+    for key, style, label in (
+        ("unsettled_after_100", "k-", "unsettled (to 1e-3) after 100 periods"),
+        ("irregular_after_100", "k--", "irregular after 100 periods"),
+    ):
+        ax.errorbar(
+            values, summary[key], yerr=summary[key + "_stderr"], fmt=style, lw=1.2, ms=2, capsize=0, label=label
+        )
     ax.set_xlim(values[0], values[-1])
     ax.set_ylim(0, 1)
     ax.set_xlabel(_axis_label(summary["parameter"]))
     ax.set_ylabel("fraction of starts (basin)")
     ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.01, 0.5))
     fig.savefig(output, dpi=150)
-    plt.close(fig)
     return output
 
 
@@ -135,20 +159,37 @@ def plot_map(rows: pd.DataFrame, config: MapConfig, boundaries: pd.DataFrame | N
         return [v[0] - (v[1] - v[0]) / 2, v[-1] + (v[-1] - v[-2]) / 2]
 
     extent = edges(config.x_values) + edges(config.y_values)
-    fig, axes = plt.subplots(1, 2, figsize=(12, 4.8), constrained_layout=True)
-    axes[0].imshow(code, origin="lower", aspect="auto", extent=extent, interpolation="nearest",
-                   cmap=ListedColormap([_colour(c) for c in present]), vmin=-0.5, vmax=len(present) - 0.5)
-    axes[0].legend(handles=[Patch(color=_colour(c), label=c) for c in present], fontsize=7, loc="upper left",
-                   framealpha=0.85)
-    im = axes[1].imshow(swing, origin="lower", aspect="auto", extent=extent, interpolation="nearest", cmap="viridis",
-                        vmin=0, vmax=np.pi)
+    fig = new_figure((12, 4.8))
+    axes = fig.subplots(1, 2)
+    axes[0].imshow(
+        code,
+        origin="lower",
+        aspect="auto",
+        extent=extent,
+        interpolation="nearest",
+        cmap=ListedColormap([_colour(c) for c in present]),
+        vmin=-0.5,
+        vmax=len(present) - 0.5,
+    )
+    axes[0].legend(
+        handles=[Patch(color=_colour(c), label=c) for c in present], fontsize=7, loc="upper left", framealpha=0.85
+    )
+    im = axes[1].imshow(
+        swing, origin="lower", aspect="auto", extent=extent, interpolation="nearest", cmap="viridis", vmin=0, vmax=np.pi
+    )
     fig.colorbar(im, ax=axes[1], label=r"settled max $|\theta|$ [rad]")
     for ax in axes:
         if boundaries is not None:
             other = [c for c in boundaries.columns if c not in ("analytic", "floquet")][0]
-            for col, style, label in (("analytic", dict(color="white", ls="--", lw=1.5), "Eq. (12)"),
-                                      ("floquet", dict(color="k", lw=1.0), "Floquet (b1 = b3 = 0)")):
-                xy = (boundaries[col], boundaries[other]) if config.x == "alpha" else (boundaries[other], boundaries[col])
+            for col, style, label in (
+                ("analytic", dict(color="white", ls="--", lw=1.5), "Eq. (12)"),
+                ("floquet", dict(color="k", lw=1.0), "Floquet (b1 = b3 = 0)"),
+            ):
+                xy = (
+                    (boundaries[col], boundaries[other])
+                    if config.x == "alpha"
+                    else (boundaries[other], boundaries[col])
+                )
                 ax.plot(*xy, label=label, **style)
             ax.set_xlim(extent[0], extent[1])
             ax.set_ylim(extent[2], extent[3])
@@ -158,7 +199,6 @@ def plot_map(rows: pd.DataFrame, config: MapConfig, boundaries: pd.DataFrame | N
         axes[1].legend(fontsize=7, loc="upper left")
     axes[0].set_title(f"motion after ≤ {config.max_periods} periods from θ = {config.initial[0]:g} rad", fontsize=9)
     fig.savefig(output, dpi=150)
-    plt.close(fig)
     return output
 
 
@@ -185,6 +225,7 @@ def basin_fractions(outdir: Path, quick: bool) -> list[Path]:
 def map_alpha_fe(outdir: Path, quick: bool) -> list[Path]:
     """Motion class and max |theta| over (alpha, fe) with the Hopf boundaries."""
     n = 12 if quick else 100
-    config = MapConfig("alpha", tuple(np.linspace(0, 45, n)), "fe", tuple(np.linspace(2.0, 3.0, n)),
-                       max_periods=100 if quick else 300)
+    config = MapConfig(
+        "alpha", tuple(np.linspace(0, 45, n)), "fe", tuple(np.linspace(2.0, 3.0, n)), max_periods=100 if quick else 300
+    )
     return [plot_map(run_map(config), config, hopf_boundaries(config), outdir / "map_alpha_fe.png")]
