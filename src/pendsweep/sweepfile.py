@@ -151,6 +151,11 @@ def check_types(data: dict[str, Any], source: str) -> None:
         raise ConfigError(f"{source}: plot = {data['plot']!r} must end in .png, .pdf or .svg")
 
 
+def describe_count(count: float) -> str:
+    """``"100,000,001 values"``, or ``"more than 1,000,000 values"`` for counts too large to spell out."""
+    return f"{int(count):,} values" if count < 1e15 else f"more than {MAX_POINTS:,} values"
+
+
 def grid_size(start: float, stop: float, step: float) -> float:
     """Number of values ``value_range(start, stop, step)`` would produce (as a float: it may be huge)."""
     ratio = (stop - start) / step if step != 0 else math.inf
@@ -189,9 +194,10 @@ def parse_sweep(data: dict[str, Any], source: str = "<sweep>") -> SweepFile:
             raise ConfigError(f"{source}: give either 'step' or 'points', not both")
         start, stop = float(data["from"]), float(data["to"])
         step = data.get("step")
-        if step and grid_size(start, stop, float(step)) > MAX_POINTS:  # step 0 is refused by value_range
+        count = grid_size(start, stop, float(step)) if step else 0
+        if count > MAX_POINTS:  # step 0 is refused by value_range
             raise ConfigError(
-                f"{source}: step = {step!r} gives more than {MAX_POINTS} values from {start:g} to {stop:g}"
+                f"{source}: step = {step!r} gives {describe_count(count)} from {start:g} to {stop:g}; at most {MAX_POINTS:,}"
             )
         if data.get("points", 0) > MAX_POINTS:
             raise ConfigError(f"{source}: points = {data['points']!r} must be at most {MAX_POINTS}")

@@ -13,7 +13,7 @@ import click
 
 from ..errors import ConfigError, ParameterError, PendsweepError
 from ..params import PARAM_SPECS, ModelParams
-from ..sweepfile import MAX_POINTS, MAX_STARTS, grid_size
+from ..sweepfile import MAX_POINTS, MAX_STARTS, describe_count, grid_size
 from ._app import ANGLE, FINITE, PATH, PERIODS, RATE, SEED, SMALL_ANGLE, STEP_S, LazyChoice, given, main
 from ._checks import FIGURE_SUFFIXES, check_input, check_output, check_output_dir, key_values, model_sets
 from ._executor import apply_options, executor_options, max_work, work_options
@@ -272,9 +272,11 @@ def build_config(parameter: str, default_step: float, kw: dict[str, Any], ctx: c
         raise ConfigError(f"give --step or --points, not both (got --step {step:g} and --points {kw['points']})")
     if step is None and kw["points"] is None:
         step = default_step if kw["stop"] >= kw["start"] else -default_step
-    if step and grid_size(kw["start"], kw["stop"], step) > MAX_POINTS:  # step 0 is refused by value_range
+    count = grid_size(kw["start"], kw["stop"], step) if step else 0  # step 0 is refused by value_range
+    if count > MAX_POINTS:
         raise ConfigError(
-            f"--step {step:g} gives more than {MAX_POINTS} values from {kw['start']:g} to {kw['stop']:g}; use a larger step"
+            f"--step {step:g} gives {describe_count(count)} from {kw['start']:g} to {kw['stop']:g}; "
+            f"at most {MAX_POINTS:,}: use a larger step"
         )
     values = value_range(kw["start"], kw["stop"], step, kw["points"])
     model: dict[str, Any] = {}
