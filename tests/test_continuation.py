@@ -11,7 +11,9 @@ from click.testing import CliRunner
 
 from pendsweep.cli import main
 from pendsweep.continuation import (
+    BRANCH_POINT,
     FOLD,
+    NEIMARK_SACKER,
     PERIOD_DOUBLING,
     Continuation,
     Evaluation,
@@ -297,6 +299,85 @@ def test_duffing_folds_where_harmonic_balance_puts_them():
     middle = [p for p in branch.points if p.lam < folds[1] and p.lam > folds[0] and p.tangent[-1] < 0]
     assert middle and all(not p.stable for p in middle)
     assert branch.ends == ["range", "range"]
+
+
+# -- bifurcation verdicts on maps with known answers --------------------------------------
+class _KnownMap:
+    """A map with its fixed points in closed form, for the bifurcation tests (no integration)."""
+
+    period = 1
+
+    def __init__(self, lam_scale=1.0):
+        self.lam_scale = lam_scale
+
+    def with_period(self, period):
+        raise NotImplementedError
+
+    def subperiod_distance(self, x, info):
+        return math.inf
+
+    def image_distance(self, info, y):
+        return math.inf
+
+
+class NeutralSaddleThenTorus(_KnownMap):
+    """x -> A(lam) x on R^4: real multipliers 26.82 and (0.7 + lam)/26.82 (product 1 at lam = 0.3: a
+    neutral saddle, no bifurcation), and a complex pair of modulus 0.6 + 0.8 lam at angle 1.9 rad
+    (crosses the unit circle at lam = 0.5: Neimark-Sacker)."""
+
+    scale = np.ones(4)
+
+    def evaluate(self, x, lam, tangent=True):
+        r, phi = 0.6 + 0.8 * lam, 1.9
+        a = np.zeros((4, 4))
+        a[0, 0], a[1, 1] = 26.82, (0.7 + lam) / 26.82
+        a[2:, 2:] = r * np.array([[math.cos(phi), -math.sin(phi)], [math.sin(phi), math.cos(phi)]])
+        return Evaluation(a @ x - x, a)
+
+
+def test_neutral_saddle_is_not_a_neimark_sacker_point():
+    """Only the complex pair's crossing of the unit circle is a Neimark-Sacker point, at its exact value."""
+    result = Continuation(NeutralSaddleThenTorus(), (0.0, 1.0)).run(np.zeros(4), 0.0)
+    assert [b.kind for b in result.bifurcations] == [NEIMARK_SACKER]
+    assert result.bifurcations[0].lam == pytest.approx(0.5, abs=1e-8)
+
+
+class PitchforkOrFold(_KnownMap):
+    """(a, b) -> (a + g(a, lam)/2, b + (lam - b)/2): b = lam on every branch, so the state moves with
+    the parameter and the tangent's scaled parameter component is about 1/lam_scale.
+    ``pitchfork``: g = lam a - a^3 (a = 0 crosses a = +-sqrt(lam) at lam = 0, the parameter does not turn);
+    otherwise g = lam - a^2 (a = +-sqrt(lam) meet at a fold at lam = 0)."""
+
+    scale = np.ones(2)
+
+    def __init__(self, pitchfork, lam_scale):
+        super().__init__(lam_scale)
+        self.pitchfork = pitchfork
+
+    def evaluate(self, x, lam, tangent=True):
+        a, b = x
+        g, g_a = (lam * a - a**3, lam - 3 * a * a) if self.pitchfork else (lam - a * a, -2 * a)
+        return Evaluation(np.array([0.5 * g, 0.5 * (lam - b)]), np.array([[1 + 0.5 * g_a, 0.0], [0.0, 0.5]]))
+
+
+@pytest.mark.parametrize("lam_scale", [2.0, 2000.0])
+@pytest.mark.parametrize("pitchfork, start, kind", [(True, (0.0, -0.5, -0.5), BRANCH_POINT),
+                                                    (False, (-0.5, 0.25, 0.25), FOLD)])
+def test_fold_or_branch_point_does_not_depend_on_the_interval(lam_scale, pitchfork, start, kind):
+    """A multiplier +1 is a fold only where the parameter turns back, whatever the parameter's scale."""
+    result = Continuation(PitchforkOrFold(pitchfork, lam_scale), (-1.0, 1.0)).run(np.array(start[:2]), start[2])
+    assert [b.kind for b in result.bifurcations] == [kind]
+    # The corrector is singular at a branch point, so its location ends at a bracket end: measured
+    # 8e-5 at lam_scale 2000 (4e-8 of the interval in scaled arclength); asserted 1e-4 of the interval.
+    assert result.bifurcations[0].lam == pytest.approx(0.0, abs=2e-4)
+
+
+def test_decreasing_interval_continues_downward_first():
+    """--from 0.5 --to -1: the branch starts at 0.5 and its points run downward (as a negative ds would)."""
+    result = Continuation(PitchforkOrFold(True, 2.0), (0.5, -1.0)).run(np.zeros(2) + [0.0, 0.5], 0.5)
+    values = [p.lam for p in result.branches[0].points]
+    assert values[0] == 0.5 and values[-1] == pytest.approx(-1.0)
+    assert all(b < a for a, b in zip(values, values[1:]))
 
 
 # -- the command line -------------------------------------------------------------------

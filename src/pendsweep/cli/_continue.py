@@ -10,6 +10,7 @@ import click
 from ..continuation import ContinuationError
 from ..continuation.run import (
     CONTINUABLE,
+    START_SHIFT_WARN,
     ContinuationConfig,
     run_continuation,
     start_from_file,
@@ -20,6 +21,11 @@ from ..params import PARAM_SPECS
 from ..results import check_writable, read_metadata
 from ._app import FINITE, main
 from ._sweep import _finite, _key_value, load_model_file
+
+
+def _aliases(parameter: str) -> set[str]:
+    """Names that set the continued ``parameter`` (M1/C1 set M/C)."""
+    return {parameter, f"{parameter}1"} if parameter in ("M", "C") else {parameter}
 
 
 @main.command("continue")
@@ -59,11 +65,16 @@ def continue_command(parameter, start, stop, alpha, fe, M_, sets, model_file, st
     """
     model: dict[str, float] = {}
     if model_file is not None:
-        model.update(load_model_file(model_file))
-    for name, value in (("alpha", alpha), ("fe", fe), ("M", M_)):
-        if value is not None:
-            model[name] = value
-    model.update({k: _finite(k, v) for k, v in _key_value(sets, "--set").items()})
+        # A full parameter file may hold the continued parameter; its value is not used (the interval is).
+        model.update({k: v for k, v in load_model_file(model_file).items() if k not in _aliases(parameter)})
+    given = {name: value for name, value in (("alpha", alpha), ("fe", fe), ("M", M_)) if value is not None}
+    given.update({k: _finite(k, v) for k, v in _key_value(sets, "--set").items()})
+    for name in given:
+        if name in _aliases(parameter):
+            option = f"--{name}" if name in ("alpha", "fe", "M") and name not in _key_value(sets, "--set") else f"--set {name}"
+            raise ConfigError(f"{option} = {given[name]:g}: {parameter} is the continued parameter; "
+                              "its range is --from/--to, not a model value")
+    model.update(given)
     section, value, period = None, None, 1
     if start_file is not None:
         section, value, period = start_from_file(start_file, parameter, start if start_value is None else start_value)
@@ -97,7 +108,15 @@ def continue_command(parameter, start, stop, alpha, fe, M_, sets, model_file, st
                        f"{sum(p['stable'] for p in pts)} stable; ends: {', '.join(ends['ends'])}")
     for bif in doc["bifurcations"]:
         click.echo(f"{bif['type']} at {parameter} = {bif['value']:.7g} {unit} (branch {bif['branch']})")
-    if start_file is None and not doc["bifurcations"] and doc["config"]["model"]["b1"] > 0:
+    if doc["start_shift"] > START_SHIFT_WARN:
+        click.echo(f"warning: Newton moved the start orbit by {doc['start_shift']:.3g} (scaled: l, l w_e, rad, w_e) "
+                   f"to another orbit; check the start section and its period ({period})", err=True)
+    if eps == 0 and doc["config"]["model"]["b1"] > 0:
+        click.echo("note: --eps 0 holds sgn(thetadot) and takes its derivative as 0, so the Coulomb friction b1 "
+                   "drops out of the multipliers: stability and bifurcations of rest are those without it (a "
+                   "Coulomb pendulum at rest sticks); use --eps > 0 (default 1e-3 rad/s), see docs/continuation.md",
+                   err=True)
+    elif start_file is None and not doc["bifurcations"] and doc["config"]["model"]["b1"] > 0:
         click.echo("note: with Coulomb friction (b1 > 0) rest does not lose stability; the swing is a separate "
                    "branch: start on it with --start (a sweep result or an orbit), see docs/continuation.md")
     click.echo(f"wrote {json_path}", err=True)
