@@ -427,6 +427,79 @@ def test_cli_continue_bad_input_exits_2(args, needle):
     assert needle in r.output and "Traceback" not in r.output
 
 
+@pytest.mark.parametrize(
+    "content, needle",
+    [
+        (b"\x89PNG\r\n\x1a\n\x00\xff", "UTF-8"),
+        ('{"value": 30, "section": ["a", 0, 0, 0]}', 'section[0] = "a"'),
+        ('{"value": "abc", "section": [0, 0, 0.5, 0]}', 'value = "abc"'),
+        ('{"value": 30, "section": [0, 0, 0.5, 0], "period": "two"}', 'period = "two"'),
+        ('{"value": 30, "section": [0, 0, 0.5, 0], "period": 2.7}', "period = 2.7 must be an integer >= 1"),
+        ('{"value": 30, "section": 5}', "section = 5 must be a list of 4 numbers"),
+    ],
+)
+def test_cli_continue_bad_start_file_exits_2(tmp_path, content, needle):
+    start = tmp_path / "c.json"
+    start.write_bytes(content if isinstance(content, bytes) else content.encode())
+    r = CliRunner().invoke(main, ["continue", "alpha", "--from", "20", "--to", "40", "--start", str(start),
+                                  "--json", str(tmp_path / "x.json")])
+    assert r.exit_code == 2, r.output
+    assert needle in r.output and "Traceback" not in r.output and len(r.output.strip().splitlines()) <= 2
+
+
+@pytest.mark.parametrize("option", [["--alpha", "99"], ["--set", "alpha=99"]])
+def test_cli_continue_refuses_a_value_for_the_continued_parameter(tmp_path, option):
+    r = CliRunner().invoke(main, ["continue", "alpha", "--from", "20", "--to", "40", *option,
+                                  "--json", str(tmp_path / "x.json")])
+    assert r.exit_code == 2 and "continued parameter" in r.output, r.output
+    assert not (tmp_path / "x.json").exists()
+
+
+def test_cli_continue_warns_when_newton_leaves_the_start_orbit(tmp_path, alpha_run):
+    """A period-2 section given without its period: Newton on P converges to rest, and says so on stderr."""
+    result, _ = alpha_run
+    swing = min(result.branches[1].points, key=lambda p: abs(p.lam - 30.0))
+    start = tmp_path / "p2.json"
+    start.write_text(json.dumps({"value": swing.lam, "section": list(swing.x)}))  # no "period": 1
+    args = ["continue", "alpha", "--from", "29", "--to", "31", "--set", "b1=0", "--set", "b3=0", "--max-period", "1",
+            "--start", str(start), "--json", str(tmp_path / "x.json")]
+    r = CliRunner().invoke(main, args)
+    assert r.exit_code == 0, r.output
+    doc = json.loads((tmp_path / "x.json").read_text())
+    assert doc["start_shift"] > 0.1 and "warning: Newton moved the start orbit" in r.stderr
+    start.write_text(json.dumps({"value": swing.lam, "section": list(swing.x), "period": 2}))
+    r = CliRunner().invoke(main, args)
+    doc = json.loads((tmp_path / "x.json").read_text())
+    assert r.exit_code == 0 and doc["start_shift"] < 1e-6 and "warning" not in r.stderr
+
+
+def test_cli_continue_eps_0_with_coulomb_friction_prints_a_note(tmp_path):
+    """--eps 0 drops b1 from the Jacobian: rest period-doubles where the friction-free pendulum does; a note says so."""
+    r = CliRunner().invoke(main, ["continue", "alpha", "--from", "15", "--to", "17", "--eps", "0",
+                                                  "--max-period", "1", "--json", str(tmp_path / "x.json")])
+    assert r.exit_code == 0, r.output
+    assert "note: --eps 0" in r.stderr and "b1" in r.stderr
+
+
+def test_sweep_point_labelled_periodic_is_a_start_orbit(tmp_path):
+    """A sweep point the classifier labels periodic-2 (Table IV damping, y drifting by ~1e-6 m over the record)
+    gives period 2 both from its label and from the start's own repeat test."""
+    from pendsweep.continuation.run import section_period, start_from_file
+    from pendsweep.params import ModelParams
+    from pendsweep.results import read_results
+    from pendsweep.sweep import SweepConfig, run_sweep
+
+    sweep = tmp_path / "s.parquet"
+    run_sweep(SweepConfig("alpha", (25.0,)), sweep)
+    df, _ = read_results(sweep)
+    rows = df.sort_values("period")
+    assert rows["motion"].iloc[0] == "periodic-2"
+    sections = rows[["y_sec", "ydot_sec", "theta_sec", "thetadot_sec"]].to_numpy(dtype=float)
+    assert section_period(sections, float(rows["y_absmax"].max()), ModelParams().replace(alpha=25.0)) == 2
+    section, value, period = start_from_file(sweep, "alpha", 25.0)
+    assert (value, period) == (25.0, 2) and np.allclose(section, sections[-1])
+
+
 def test_cli_continue_runtime_failure_exits_1(tmp_path):
     """A start far from any orbit: Newton fails, a one-line message and exit status 1."""
     start = tmp_path / "bad.json"
