@@ -551,6 +551,8 @@ class BasinConfig:
     backend_options: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        if not (isinstance(self.seed, int) and 0 <= self.seed < 2**63):
+            raise ConfigError(f"seed = {self.seed!r} must be an integer in [0, 2**63) (numpy's seed sequences)")
         if self.tol is None:
             object.__setattr__(self, "tol", SETTLE_TOL if self.backend == "emulated" else NOISY_SETTLE_TOL)
         if not (math.isfinite(self.tol) and 0 < self.tol < MATCH_TOL):
