@@ -13,10 +13,11 @@ import click
 
 from ..backends import BACKENDS
 from ..errors import ConfigError, ParameterError
+from ..gpu import require_cuda, with_device
 from ..params import PARAM_SPECS
 from ._app import FINITE, main
 from ._executor import apply_options, executor_options
-from ._sweep import load_model_file
+from ._sweep import DEVICE_OPTION, load_model_file
 
 _MODEL_FLAGS = (("alpha", "alpha", "N"), ("fe", "fe", "Hz"), ("M", "M_", "kg"), ("C", "C_", "kg/s"), ("K", "K_", "N/m"))
 
@@ -116,6 +117,7 @@ def _progress(flag: bool | None) -> bool:
 @click.option("--backend", type=click.Choice(sorted(BACKENDS)), default="emulated", show_default=True, help="Simulation backend (substructured: with its noise, one start at a time).")
 @click.option("-B", "--backend-option", "backend_opts", multiple=True, metavar="KEY=VALUE", help="Backend option, e.g. -B force_noise=0.3.")
 @click.option("--dt", type=FINITE, default=None, help="Integration / controller step [s] (default 0.001).")
+@DEVICE_OPTION
 @click.option("-j", "--jobs", type=int, default=-1, show_default=True, help="Threads for one-start-at-a-time backends (-1: all cores).")
 @apply_options(executor_options())
 @click.option("-o", "--output", type=click.Path(path_type=Path), default=Path("results/basins.parquet"), show_default=True, help="Per-start results parquet (resumable).")
@@ -159,6 +161,7 @@ def basins_command(parameter, start, stop, step, points, **kw):
     backend_options = _key_value(kw["backend_opts"], "--backend-option")
     if kw["dt"] is not None:
         backend_options["dt"] = kw["dt"]
+    backend_options = with_device(kw["backend"], backend_options, kw["device"] or backend_options.get("device"))
     config = BasinConfig(
         parameter=parameter,
         values=values,
@@ -241,6 +244,7 @@ def _rewrite_with_attractors(output: Path, rows) -> None:
 @click.option("--thetadot0", type=FINITE, default=0.0, show_default=True, help="Initial pendulum rate of every cell [rad/s].")
 @click.option("--max-periods", type=int, default=300, show_default=True, help="Forcing periods after which a cell counts as unsettled.")
 @click.option("--dt", type=FINITE, default=1e-3, show_default=True, help="Requested RK4 step [s].")
+@DEVICE_OPTION
 @apply_options(executor_options())
 @click.option("-o", "--output", type=click.Path(path_type=Path), default=Path("results/map.parquet"), show_default=True, help="Per-cell results parquet (resumable).")
 @click.option("--plot", "plot_path", type=click.Path(path_type=Path), default=None, help="Image of the motion class and max|theta| with the Hopf boundaries.")
@@ -271,7 +275,12 @@ def map_command(x, y, **kw):
             raise ConfigError(f"give the {name} axis as --{name} FROM:TO:N (or --set {name}=FROM:TO:N)")
         axes[name] = parse_axis(raw.pop(name), name)
     model = {k: _finite(k, v) if isinstance(v, str) else v for k, v in raw.items()}
-    config = MapConfig(x, axes[x], y, axes[y], model, (kw["theta0"], kw["thetadot0"]), kw["max_periods"], dt=kw["dt"])
+    device = kw["device"] or "cpu"
+    if device == "cuda":
+        require_cuda()  # before any work
+    config = MapConfig(
+        x, axes[x], y, axes[y], model, (kw["theta0"], kw["thetadot0"]), kw["max_periods"], dt=kw["dt"], device=device
+    )
     output = kw["output"]
     t0 = time.perf_counter()
     runner = make_executor(kw["executor"], kw["scheduler"])
