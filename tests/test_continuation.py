@@ -377,7 +377,7 @@ def test_decreasing_interval_continues_downward_first():
     result = Continuation(PitchforkOrFold(True, 2.0), (0.5, -1.0)).run(np.zeros(2) + [0.0, 0.5], 0.5)
     values = [p.lam for p in result.branches[0].points]
     assert values[0] == 0.5 and values[-1] == pytest.approx(-1.0)
-    assert all(b < a for a, b in zip(values, values[1:]))
+    assert np.all(np.diff(values) < 0)
 
 
 # -- the command line -------------------------------------------------------------------

@@ -67,14 +67,13 @@ def continue_command(parameter, start, stop, alpha, fe, M_, sets, model_file, st
     if model_file is not None:
         # A full parameter file may hold the continued parameter; its value is not used (the interval is).
         model.update({k: v for k, v in load_model_file(model_file).items() if k not in _aliases(parameter)})
-    given = {name: value for name, value in (("alpha", alpha), ("fe", fe), ("M", M_)) if value is not None}
-    given.update({k: _finite(k, v) for k, v in _key_value(sets, "--set").items()})
-    for name in given:
+    options = {f"--{name}": (name, value) for name, value in (("alpha", alpha), ("fe", fe), ("M", M_)) if value is not None}
+    options.update({f"--set {k}": (k, _finite(k, v)) for k, v in _key_value(sets, "--set").items()})
+    for option, (name, value) in options.items():
         if name in _aliases(parameter):
-            option = f"--{name}" if name in ("alpha", "fe", "M") and name not in _key_value(sets, "--set") else f"--set {name}"
-            raise ConfigError(f"{option} = {given[name]:g}: {parameter} is the continued parameter; "
+            raise ConfigError(f"{option} = {value:g}: {parameter} is the continued parameter; "
                               "its range is --from/--to, not a model value")
-    model.update(given)
+        model[name] = value
     section, value, period = None, None, 1
     if start_file is not None:
         section, value, period = start_from_file(start_file, parameter, start if start_value is None else start_value)
