@@ -11,7 +11,9 @@ from click.testing import CliRunner
 
 from pendsweep.cli import main
 from pendsweep.continuation import (
+    BRANCH_POINT,
     FOLD,
+    NEIMARK_SACKER,
     PERIOD_DOUBLING,
     Continuation,
     Evaluation,
@@ -299,6 +301,85 @@ def test_duffing_folds_where_harmonic_balance_puts_them():
     assert branch.ends == ["range", "range"]
 
 
+# -- bifurcation verdicts on maps with known answers --------------------------------------
+class _KnownMap:
+    """A map with its fixed points in closed form, for the bifurcation tests (no integration)."""
+
+    period = 1
+
+    def __init__(self, lam_scale=1.0):
+        self.lam_scale = lam_scale
+
+    def with_period(self, period):
+        raise NotImplementedError
+
+    def subperiod_distance(self, x, info):
+        return math.inf
+
+    def image_distance(self, info, y):
+        return math.inf
+
+
+class NeutralSaddleThenTorus(_KnownMap):
+    """x -> A(lam) x on R^4: real multipliers 26.82 and (0.7 + lam)/26.82 (product 1 at lam = 0.3: a
+    neutral saddle, no bifurcation), and a complex pair of modulus 0.6 + 0.8 lam at angle 1.9 rad
+    (crosses the unit circle at lam = 0.5: Neimark-Sacker)."""
+
+    scale = np.ones(4)
+
+    def evaluate(self, x, lam, tangent=True):
+        r, phi = 0.6 + 0.8 * lam, 1.9
+        a = np.zeros((4, 4))
+        a[0, 0], a[1, 1] = 26.82, (0.7 + lam) / 26.82
+        a[2:, 2:] = r * np.array([[math.cos(phi), -math.sin(phi)], [math.sin(phi), math.cos(phi)]])
+        return Evaluation(a @ x - x, a)
+
+
+def test_neutral_saddle_is_not_a_neimark_sacker_point():
+    """Only the complex pair's crossing of the unit circle is a Neimark-Sacker point, at its exact value."""
+    result = Continuation(NeutralSaddleThenTorus(), (0.0, 1.0)).run(np.zeros(4), 0.0)
+    assert [b.kind for b in result.bifurcations] == [NEIMARK_SACKER]
+    assert result.bifurcations[0].lam == pytest.approx(0.5, abs=1e-8)
+
+
+class PitchforkOrFold(_KnownMap):
+    """(a, b) -> (a + g(a, lam)/2, b + (lam - b)/2): b = lam on every branch, so the state moves with
+    the parameter and the tangent's scaled parameter component is about 1/lam_scale.
+    ``pitchfork``: g = lam a - a^3 (a = 0 crosses a = +-sqrt(lam) at lam = 0, the parameter does not turn);
+    otherwise g = lam - a^2 (a = +-sqrt(lam) meet at a fold at lam = 0)."""
+
+    scale = np.ones(2)
+
+    def __init__(self, pitchfork, lam_scale):
+        super().__init__(lam_scale)
+        self.pitchfork = pitchfork
+
+    def evaluate(self, x, lam, tangent=True):
+        a, b = x
+        g, g_a = (lam * a - a**3, lam - 3 * a * a) if self.pitchfork else (lam - a * a, -2 * a)
+        return Evaluation(np.array([0.5 * g, 0.5 * (lam - b)]), np.array([[1 + 0.5 * g_a, 0.0], [0.0, 0.5]]))
+
+
+@pytest.mark.parametrize("lam_scale", [2.0, 2000.0])
+@pytest.mark.parametrize("pitchfork, start, kind", [(True, (0.0, -0.5, -0.5), BRANCH_POINT),
+                                                    (False, (-0.5, 0.25, 0.25), FOLD)])
+def test_fold_or_branch_point_does_not_depend_on_the_interval(lam_scale, pitchfork, start, kind):
+    """A multiplier +1 is a fold only where the parameter turns back, whatever the parameter's scale."""
+    result = Continuation(PitchforkOrFold(pitchfork, lam_scale), (-1.0, 1.0)).run(np.array(start[:2]), start[2])
+    assert [b.kind for b in result.bifurcations] == [kind]
+    # The corrector is singular at a branch point, so its location ends at a bracket end: measured
+    # 8e-5 at lam_scale 2000 (4e-8 of the interval in scaled arclength); asserted 1e-4 of the interval.
+    assert result.bifurcations[0].lam == pytest.approx(0.0, abs=2e-4)
+
+
+def test_decreasing_interval_continues_downward_first():
+    """--from 0.5 --to -1: the branch starts at 0.5 and its points run downward (as a negative ds would)."""
+    result = Continuation(PitchforkOrFold(True, 2.0), (0.5, -1.0)).run(np.zeros(2) + [0.0, 0.5], 0.5)
+    values = [p.lam for p in result.branches[0].points]
+    assert values[0] == 0.5 and values[-1] == pytest.approx(-1.0)
+    assert np.all(np.diff(values) < 0)
+
+
 # -- the command line -------------------------------------------------------------------
 def test_cli_continue_writes_the_issue_schema(tmp_path):
     out, png = tmp_path / "c.json", tmp_path / "c.png"
@@ -344,6 +425,79 @@ def test_cli_continue_bad_input_exits_2(args, needle):
     r = CliRunner().invoke(main, ["continue", "alpha", *args, "--json", "/tmp/never.json"])
     assert r.exit_code == 2, r.output
     assert needle in r.output and "Traceback" not in r.output
+
+
+@pytest.mark.parametrize(
+    "content, needle",
+    [
+        (b"\x89PNG\r\n\x1a\n\x00\xff", "UTF-8"),
+        ('{"value": 30, "section": ["a", 0, 0, 0]}', 'section[0] = "a"'),
+        ('{"value": "abc", "section": [0, 0, 0.5, 0]}', 'value = "abc"'),
+        ('{"value": 30, "section": [0, 0, 0.5, 0], "period": "two"}', 'period = "two"'),
+        ('{"value": 30, "section": [0, 0, 0.5, 0], "period": 2.7}', "period = 2.7 must be an integer >= 1"),
+        ('{"value": 30, "section": 5}', "section = 5 must be a list of 4 numbers"),
+    ],
+)
+def test_cli_continue_bad_start_file_exits_2(tmp_path, content, needle):
+    start = tmp_path / "c.json"
+    start.write_bytes(content if isinstance(content, bytes) else content.encode())
+    r = CliRunner().invoke(main, ["continue", "alpha", "--from", "20", "--to", "40", "--start", str(start),
+                                  "--json", str(tmp_path / "x.json")])
+    assert r.exit_code == 2, r.output
+    assert needle in r.output and "Traceback" not in r.output and len(r.output.strip().splitlines()) <= 2
+
+
+@pytest.mark.parametrize("option", [["--alpha", "99"], ["--set", "alpha=99"]])
+def test_cli_continue_refuses_a_value_for_the_continued_parameter(tmp_path, option):
+    r = CliRunner().invoke(main, ["continue", "alpha", "--from", "20", "--to", "40", *option,
+                                  "--json", str(tmp_path / "x.json")])
+    assert r.exit_code == 2 and "continued parameter" in r.output, r.output
+    assert not (tmp_path / "x.json").exists()
+
+
+def test_cli_continue_warns_when_newton_leaves_the_start_orbit(tmp_path, alpha_run):
+    """A period-2 section given without its period: Newton on P converges to rest, and says so on stderr."""
+    result, _ = alpha_run
+    swing = min(result.branches[1].points, key=lambda p: abs(p.lam - 30.0))
+    start = tmp_path / "p2.json"
+    start.write_text(json.dumps({"value": swing.lam, "section": list(swing.x)}))  # no "period": 1
+    args = ["continue", "alpha", "--from", "29", "--to", "31", "--set", "b1=0", "--set", "b3=0", "--max-period", "1",
+            "--start", str(start), "--json", str(tmp_path / "x.json")]
+    r = CliRunner().invoke(main, args)
+    assert r.exit_code == 0, r.output
+    doc = json.loads((tmp_path / "x.json").read_text())
+    assert doc["start_shift"] > 0.1 and "warning: Newton moved the start orbit" in r.stderr
+    start.write_text(json.dumps({"value": swing.lam, "section": list(swing.x), "period": 2}))
+    r = CliRunner().invoke(main, args)
+    doc = json.loads((tmp_path / "x.json").read_text())
+    assert r.exit_code == 0 and doc["start_shift"] < 1e-6 and "warning" not in r.stderr
+
+
+def test_cli_continue_eps_0_with_coulomb_friction_prints_a_note(tmp_path):
+    """--eps 0 drops b1 from the Jacobian: rest period-doubles where the friction-free pendulum does; a note says so."""
+    r = CliRunner().invoke(main, ["continue", "alpha", "--from", "15", "--to", "17", "--eps", "0",
+                                                  "--max-period", "1", "--json", str(tmp_path / "x.json")])
+    assert r.exit_code == 0, r.output
+    assert "note: --eps 0" in r.stderr and "b1" in r.stderr
+
+
+def test_sweep_point_labelled_periodic_is_a_start_orbit(tmp_path):
+    """A sweep point the classifier labels periodic-2 (Table IV damping, y drifting by ~1e-6 m over the record)
+    gives period 2 both from its label and from the start's own repeat test."""
+    from pendsweep.continuation.run import section_period, start_from_file
+    from pendsweep.params import ModelParams
+    from pendsweep.results import read_results
+    from pendsweep.sweep import SweepConfig, run_sweep
+
+    sweep = tmp_path / "s.parquet"
+    run_sweep(SweepConfig("alpha", (25.0,)), sweep)
+    df, _ = read_results(sweep)
+    rows = df.sort_values("period")
+    assert rows["motion"].iloc[0] == "periodic-2"
+    sections = rows[["y_sec", "ydot_sec", "theta_sec", "thetadot_sec"]].to_numpy(dtype=float)
+    assert section_period(sections, float(rows["y_absmax"].max()), ModelParams().replace(alpha=25.0)) == 2
+    section, value, period = start_from_file(sweep, "alpha", 25.0)
+    assert (value, period) == (25.0, 2) and np.allclose(section, sections[-1])
 
 
 def test_cli_continue_runtime_failure_exits_1(tmp_path):

@@ -55,6 +55,9 @@ SIMULATED = textwrap.dedent(
         out.update({f"{precision}_{k}": v for k, v in run._asdict().items()})
     run = run_batch(params, data["states"], 0, 3, dt=float(data["dt"]), signum="stage", device="cuda")
     out.update({f"stage_{k}": v for k, v in run._asdict().items()})
+    from pendsweep.basins import EmulatedMap
+    basin_map = EmulatedMap(tuple(params[:4]), dt=float(data["dt"]), device="cuda")
+    out["map_records"] = basin_map.advance(data["states"][:4], 3, np.arange(4))[0]
     np.savez(sys.argv[2], **out)
     import json
     from pendsweep.sweep import SweepConfig, run_sweep
@@ -102,6 +105,7 @@ def simulated(tmp_path_factory):
     cpu = run_batch(params, states, TRANSIENT, RECORD, dt=DT)
     stage = run_batch(params, states, 0, 3, dt=DT, signum="stage")
     out["sweep"] = folder / "sweep.parquet"
+    out["states"] = states
     return params, cpu, stage, out
 
 
@@ -142,6 +146,15 @@ def test_simulated_motion_labels_match(simulated):
     assert labels == ["semi-trivial", "periodic-2", "periodic-2", "periodic-2", "n/a"]
     assert _labels(params, _run(out, "float64")) == labels
     assert _labels(params, _run(out, "float32")) == labels
+
+
+def test_simulated_basin_map_rounds_match_cpu(simulated):
+    """Basins and 2-D maps integrate their rounds on the GPU through the same EmulatedMap."""
+    from pendsweep.basins import EmulatedMap
+
+    params, cpu, _, out = simulated
+    reference = EmulatedMap(tuple(params[:4]), dt=DT).advance(out["states"][:4], 3, np.arange(4))[0]
+    assert _scaled_error(out["map_records"], reference) < 1e-9
 
 
 def test_simulated_signum_per_stage_matches(simulated):
@@ -186,6 +199,10 @@ def test_device_cuda_without_gpu_exits_2(tmp_path):
     assert result.exit_code == 2 and "no usable CUDA GPU" in result.output
     result = CliRunner().invoke(main, args[:-4] + ["-B", "device=cuda", "-o", str(tmp_path / "b.parquet")])
     assert result.exit_code == 2 and "no usable CUDA GPU" in result.output
+    for command in (["basins", "--alpha", "40", "--grid", "3x3", "--device", "cuda", "-o", str(tmp_path / "g.parquet")],
+                    ["map", "alpha", "fe", "--alpha", "0:45:3", "--fe", "2:3:3", "--device", "cuda", "-o", str(tmp_path / "m.parquet")]):
+        result = CliRunner().invoke(main, command)
+        assert result.exit_code == 2 and "no usable CUDA GPU" in result.output, command
     assert list(tmp_path.iterdir()) == []  # stopped before any result file or its parts were made
 
 

@@ -66,6 +66,17 @@ def test_pendulum_at_rest_effect_found():
     assert js["explained_share"] > 0.9 and not js["unexplained"]
 
 
+def test_report_of_a_record_whose_pendulum_never_moves(tmp_path):
+    """The report (figures and text) is written for the at-rest case too (theta is not compared)."""
+    from pendsweep.diagnose.report import write_report
+
+    case = Case("forced", {"oscillator_damping": truth_value("forced", "oscillator_damping", 0.5, 500.0)},
+                rate=500.0, seed=SEED, theta_init=0.0)
+    d, _ = run(case)
+    files = write_report(d, tmp_path, "at-rest record")
+    assert (tmp_path / "signatures.png") in files and all(f.exists() for f in files)
+
+
 @pytest.mark.parametrize("kind, rate", [("free_decay", 500.0), ("forced", 2000.0), ("substructured", 500.0), ("forced", 500.0)])
 def test_clean_records_give_none_and_nothing_unexplained(kind, rate):
     theta_init = 0.0 if (kind, rate) == ("forced", 500.0) else (1.0 if kind == "free_decay" else 0.3)

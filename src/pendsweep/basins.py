@@ -101,12 +101,17 @@ class EmulatedMap:
     signum : {"step", "stage"}
     threads : int, optional
         numba threads (default: all).
+    device, precision : str
+        ``"cpu"`` or ``"cuda"`` and the GPU's ``"float64"``/``"float32"``
+        (see :func:`pendsweep.backends._batch.run_batch`).
     """
 
     params: tuple[ModelParams, ...]
     dt: float = 1e-3
     signum: str = "step"
     threads: int | None = None
+    device: str = "cpu"
+    precision: str = "float64"
 
     def _params_of(self, ids: np.ndarray) -> list[ModelParams]:
         return [self.params[0]] * len(ids) if len(self.params) == 1 else [self.params[i] for i in ids]
@@ -114,7 +119,10 @@ class EmulatedMap:
     def advance(self, states, periods, ids):
         from .backends._batch import run_batch
 
-        run = run_batch(self._params_of(ids), states, 0, periods, dt=self.dt, signum=self.signum, threads=self.threads)
+        run = run_batch(
+            self._params_of(ids), states, 0, periods, dt=self.dt, signum=self.signum, threads=self.threads,
+            device=self.device, precision=self.precision,
+        )  # fmt: skip
         return run.records, run.states, run.status
 
     def scales_for(self, ids: np.ndarray, records: np.ndarray) -> np.ndarray:
@@ -543,6 +551,8 @@ class BasinConfig:
     backend_options: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        if not (isinstance(self.seed, int) and 0 <= self.seed < 2**63):
+            raise ConfigError(f"seed = {self.seed!r} must be an integer in [0, 2**63) (numpy's seed sequences)")
         if self.tol is None:
             object.__setattr__(self, "tol", SETTLE_TOL if self.backend == "emulated" else NOISY_SETTLE_TOL)
         if not (math.isfinite(self.tol) and 0 < self.tol < MATCH_TOL):
@@ -621,7 +631,7 @@ def system_for(config: BasinConfig, point: int, workers: int) -> StroboscopicMap
     backend = config.make_backend()
     params = config.params_at(config.values[point])
     if backend.name == "emulated":
-        return EmulatedMap((params,), backend.dt, backend.signum)
+        return EmulatedMap((params,), backend.dt, backend.signum, device=backend.device, precision=backend.precision)
     return BackendMap(backend, params, (config.seed, point), workers)
 
 

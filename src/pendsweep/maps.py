@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from .gpu import check_device
 from .basins import CHUNK_STARTS, ROUND_PERIODS, EmulatedMap, settle_runs
 from .errors import ConfigError
 from .params import PARAM_SPECS, ModelParams, check_value
@@ -66,6 +67,9 @@ class MapConfig:
         Cap on forcing periods per cell; periods between settling checks.
     dt : float
         Requested RK4 step [s]; signum : "step" or "stage".
+    device, precision : str
+        Where the cells integrate: ``"cpu"`` or ``"cuda"`` (GPU precision
+        ``"float64"`` or ``"float32"``).
     """
 
     x: str
@@ -78,6 +82,8 @@ class MapConfig:
     round_periods: int = ROUND_PERIODS
     dt: float = 1e-3
     signum: str = "step"
+    device: str = "cpu"
+    precision: str = "float64"
 
     def __post_init__(self) -> None:
         from .attractors import SETTLE_WINDOW
@@ -95,6 +101,7 @@ class MapConfig:
         object.__setattr__(self, "x_values", tuple(float(v) for v in self.x_values))
         object.__setattr__(self, "y_values", tuple(float(v) for v in self.y_values))
         object.__setattr__(self, "initial", tuple(float(v) for v in self.initial))
+        check_device(self.device, self.precision)
         for name, v, lo in (("max_periods", self.max_periods, SETTLE_WINDOW), ("round_periods", self.round_periods, 1)):
             if int(v) != v or v < lo:
                 raise ConfigError(f"{name} = {v!r} must be an integer >= {lo}")
@@ -133,7 +140,8 @@ def _map_task(config: MapConfig, cells: np.ndarray) -> list:
     states = np.zeros((cells.size, 4))
     states[:, 2:] = config.initial
     runs = settle_runs(
-        EmulatedMap(params, config.dt, config.signum), states, config.max_periods, round_periods=config.round_periods
+        EmulatedMap(params, config.dt, config.signum, device=config.device, precision=config.precision),
+        states, config.max_periods, round_periods=config.round_periods,
     )
     df = pd.DataFrame(
         {

@@ -317,7 +317,10 @@ def run_units(config: SweepConfig, backend, params: list, states: np.ndarray, th
             runs = backend.run_points(params, states, config.transient_periods, config.record_periods, threads)
         return runs, np.zeros(n, dtype=bool), np.full(n, config.transient_periods)
     if backend.batched and not one_by_one:
-        system = EmulatedMap(tuple(params), dt=backend.dt, signum=backend.signum, threads=threads)
+        system = EmulatedMap(
+            tuple(params), dt=backend.dt, signum=backend.signum, threads=threads,
+            device=backend.device, precision=backend.precision,
+        )  # fmt: skip
     else:  # units of one call share their parameters (one point, or one point's starts)
         system = BackendMap(backend, params[0], entropy=(config.seed,), workers=1)
     settled = settle_runs(system, np.asarray(states, dtype=np.float64), config.max_transient_periods,

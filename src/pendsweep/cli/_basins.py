@@ -15,7 +15,7 @@ from ..errors import ConfigError, ParameterError
 from ..params import PARAM_SPECS
 from ._app import FINITE, LazyChoice, main
 from ._executor import apply_options, executor_options
-from ._sweep import load_model_file
+from ._sweep import DEVICE_OPTION, load_model_file
 
 _MODEL_FLAGS = (("alpha", "alpha", "N"), ("fe", "fe", "Hz"), ("M", "M_", "kg"), ("C", "C_", "kg/s"), ("K", "K_", "N/m"))
 
@@ -176,6 +176,7 @@ def _progress(flag: bool | None) -> bool:
     help="Backend option, e.g. -B force_noise=0.3.",
 )
 @click.option("--dt", type=FINITE, default=None, help="Integration / controller step [s] (default 0.001).")
+@DEVICE_OPTION
 @click.option(
     "-j",
     "--jobs",
@@ -226,6 +227,7 @@ def basins_command(parameter, start, stop, step, points, **kw):
     from ..basins import BasinConfig, run_basins, scan_summary
     from ..executors import make_executor
     from ..figures.basins import plot_basin, plot_scan
+    from ..gpu import with_device
     from ..sweep import value_range
 
     model = {k: _finite(k, v) if isinstance(v, str) else v for k, v in _model(kw).items()}
@@ -249,6 +251,7 @@ def basins_command(parameter, start, stop, step, points, **kw):
     backend_options = _key_value(kw["backend_opts"], "--backend-option")
     if kw["dt"] is not None:
         backend_options["dt"] = kw["dt"]
+    backend_options = with_device(kw["backend"], backend_options, kw["device"] or backend_options.get("device"))
     config = BasinConfig(
         parameter=parameter,
         values=values,
@@ -359,6 +362,7 @@ def _rewrite_with_attractors(output: Path, rows) -> None:
     help="Forcing periods after which a cell counts as unsettled.",
 )
 @click.option("--dt", type=FINITE, default=1e-3, show_default=True, help="Requested RK4 step [s].")
+@DEVICE_OPTION
 @apply_options(executor_options())
 @click.option(
     "-o",
@@ -391,6 +395,7 @@ def map_command(x, y, **kw):
     """
     from ..executors import make_executor
     from ..figures.basins import plot_map
+    from ..gpu import require_cuda
     from ..maps import MapConfig, hopf_boundaries, parse_axis, run_map
 
     raw = _model(kw)
@@ -404,7 +409,12 @@ def map_command(x, y, **kw):
             raise ConfigError(f"give the {name} axis as --{name} FROM:TO:N (or --set {name}=FROM:TO:N)")
         axes[name] = parse_axis(raw.pop(name), name)
     model = {k: _finite(k, v) if isinstance(v, str) else v for k, v in raw.items()}
-    config = MapConfig(x, axes[x], y, axes[y], model, (kw["theta0"], kw["thetadot0"]), kw["max_periods"], dt=kw["dt"])
+    device = kw["device"] or "cpu"
+    if device == "cuda":
+        require_cuda()  # before any work
+    config = MapConfig(
+        x, axes[x], y, axes[y], model, (kw["theta0"], kw["thetadot0"]), kw["max_periods"], dt=kw["dt"], device=device
+    )
     output = kw["output"]
     t0 = time.perf_counter()
     runner = make_executor(kw["executor"], kw["scheduler"])

@@ -7,15 +7,30 @@ from pathlib import Path
 
 import click
 
+from ..continuation import ContinuationError
+from ..continuation.run import (
+    CONTINUABLE,
+    START_SHIFT_WARN,
+    ContinuationConfig,
+    run_continuation,
+    start_from_file,
+    write_json,
+)
 from ..errors import ConfigError
 from ..params import PARAM_SPECS
-from ._app import FINITE, PATH, LazyChoice, main
-from ._checks import FIGURE_SUFFIXES, check_input, check_output, model_sets
-from ._sweep import load_model_file, read_sweep_metadata
+from ..results import check_writable, read_metadata
+from ._app import FINITE, main
+from ._checks import model_sets
+from ._sweep import load_model_file
+
+
+def _aliases(parameter: str) -> set[str]:
+    """Names that set the continued ``parameter`` (M1/C1 set M/C)."""
+    return {parameter, f"{parameter}1"} if parameter in ("M", "C") else {parameter}
 
 
 @main.command("continue")
-@click.argument("parameter", type=LazyChoice(".continuation.run", "CONTINUABLE"))
+@click.argument("parameter", type=click.Choice(CONTINUABLE))
 @click.option(
     "--from",
     "start",
@@ -34,11 +49,17 @@ from ._sweep import load_model_file, read_sweep_metadata
     metavar="NAME=VALUE",
     help="Any other model parameter, SI units (see `pendsweep params`), e.g. --set b1=0.",
 )
-@click.option("--model", "model_file", type=PATH, default=None, help="JSON file of model parameters.")
+@click.option(
+    "--model",
+    "model_file",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="JSON file of model parameters.",
+)
 @click.option(
     "--start",
     "start_file",
-    type=PATH,
+    type=click.Path(dir_okay=False, path_type=Path),
     default=None,
     help='Start orbit: a sweep result (.parquet; the point nearest --start-value) or JSON {"value", "section" [m, m/s, rad, rad/s], "period"}. Default: the semi-trivial solution at --from.',
 )
@@ -89,14 +110,24 @@ from ._sweep import load_model_file, read_sweep_metadata
     help="Newton tolerance on the scaled update and residual [-].",
 )
 @click.option(
-    "--json", "json_path", type=PATH, default=None, help="Result JSON (default results/continue-PARAMETER.json)."
+    "--json",
+    "json_path",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="Result JSON (default results/continue-PARAMETER.json).",
 )
-@click.option("--plot", "plot_path", type=PATH, default=None, help="Also draw the branches here (.png/.pdf/.svg).")
+@click.option(
+    "--plot",
+    "plot_path",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="Also draw the branches here (.png/.pdf/.svg).",
+)
 @click.option(
     "--overlay",
     "overlays",
     multiple=True,
-    type=PATH,
+    type=click.Path(dir_okay=False, path_type=Path),
     help="Sweep result (.parquet) drawn under the branches in --plot (repeatable).",
 )
 @click.option(
@@ -142,29 +173,21 @@ def continue_command(
     switches onto the doubled branch at every period doubling up to
     --max-period. Exit 1 when Newton cannot converge at the start.
     """
-    from ..continuation import ContinuationError
-    from ..continuation.run import ContinuationConfig, run_continuation, start_from_file, write_json
-
-    json_path = check_output(json_path or Path(f"results/continue-{parameter}.json"), "--json", (".json",))
-    check_output(plot_path, "--plot", FIGURE_SUFFIXES)
     model: dict[str, float] = {}
     if model_file is not None:
-        model.update(load_model_file(model_file))
-        model.pop(parameter, None)  # the continued parameter runs from --from to --to
-    fixed = {name: value for name, value in (("alpha", alpha), ("fe", fe), ("M", M_)) if value is not None}
-    sets = model_sets(sets)
-    twice = sorted(fixed.keys() & sets.keys())
-    if twice:
-        name = twice[0]
-        raise ConfigError(f"--{name} {fixed[name]:g} and --set {name}={sets[name]:g} both fix {name}; give one")
-    fixed |= sets
-    if parameter in fixed:
-        raise ConfigError(
-            f"{parameter} = {fixed[parameter]:g} fixes the continued parameter {parameter!r}; drop it (--from/--to give its values)"
-        )
-    model.update(fixed)
-    if start_file is not None:
-        check_input(start_file, "start file")
+        # A full parameter file may hold the continued parameter; its value is not used (the interval is).
+        model.update({k: v for k, v in load_model_file(model_file).items() if k not in _aliases(parameter)})
+    options = {
+        f"--{name}": (name, value) for name, value in (("alpha", alpha), ("fe", fe), ("M", M_)) if value is not None
+    }
+    options.update({f"--set {k}": (k, v) for k, v in model_sets(sets).items()})
+    for option, (name, value) in options.items():
+        if name in _aliases(parameter):
+            raise ConfigError(
+                f"{option} = {value:g}: {parameter} is the continued parameter; "
+                "its range is --from/--to, not a model value"
+            )
+        model[name] = value
     section, value, period = None, None, 1
     if start_file is not None:
         section, value, period = start_from_file(start_file, parameter, start if start_value is None else start_value)
@@ -186,8 +209,12 @@ def continue_command(
         max_period=max_period,
         newton_tol=newton_tol,
     )
+    json_path = json_path or Path(f"results/continue-{parameter}.json")
+    check_writable(json_path)
+    if plot_path is not None and plot_path.suffix.lower() not in {".png", ".pdf", ".svg"}:
+        raise ConfigError(f"plot file {str(plot_path)!r} must end in .png, .pdf or .svg")
     for sweep in overlays:  # refuse unreadable or other-parameter sweeps before the run, not after
-        swept = read_sweep_metadata(sweep, "--overlay")["config"].get("parameter")
+        swept = read_metadata(sweep).get("config", {}).get("parameter")
         if swept != parameter:
             raise ConfigError(f"--overlay {str(sweep)!r} sweeps {swept!r}, not {parameter!r}")
     progress = sys.stderr.isatty() if progress is None else progress
@@ -207,7 +234,20 @@ def continue_command(
             )
     for bif in doc["bifurcations"]:
         click.echo(f"{bif['type']} at {parameter} = {bif['value']:.7g} {unit} (branch {bif['branch']})")
-    if start_file is None and not doc["bifurcations"] and doc["config"]["model"]["b1"] > 0:
+    if doc["start_shift"] > START_SHIFT_WARN:
+        click.echo(
+            f"warning: Newton moved the start orbit by {doc['start_shift']:.3g} (scaled: l, l w_e, rad, w_e) "
+            f"to another orbit; check the start section and its period ({period})",
+            err=True,
+        )
+    if eps == 0 and doc["config"]["model"]["b1"] > 0:
+        click.echo(
+            "note: --eps 0 holds sgn(thetadot) and takes its derivative as 0, so the Coulomb friction b1 "
+            "drops out of the multipliers: stability and bifurcations of rest are those without it (a "
+            "Coulomb pendulum at rest sticks); use --eps > 0 (default 1e-3 rad/s), see docs/continuation.md",
+            err=True,
+        )
+    elif start_file is None and not doc["bifurcations"] and doc["config"]["model"]["b1"] > 0:
         click.echo(
             "note: with Coulomb friction (b1 > 0) rest does not lose stability; the swing is a separate "
             "branch: start on it with --start (a sweep result or an orbit), see docs/continuation.md"

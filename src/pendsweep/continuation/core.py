@@ -29,14 +29,21 @@ bifurcation, evaluated at every accepted point:
 event              test function                       condition
 =================  ==================================  ============================
 fold (mu = +1)     ``det(dP/dx - I)``                  the tangent's ``lam``
-                                                       component vanishes there
+                                                       component changes sign too
 period doubling    ``det(dP/dx + I)``                  (a real multiplier at -1)
-Neimark-Sacker     ``prod_{i<j} (mu_i mu_j - 1)``      the located pair is complex
+Neimark-Sacker     ``prod_{i<j} (mu_i mu_j - 1)``      a complex pair crosses the
+                                                       unit circle
 =================  ==================================  ============================
 
-A real multiplier crossing +1 where the tangent does not turn is reported
-as a ``branch-point`` (another branch crosses there, e.g. a symmetry-breaking
-pitchfork of the symmetric swing); it is not followed.
+A real multiplier crossing +1 where the parameter does not turn back is
+reported as a ``branch-point`` (another branch crosses there, e.g. a
+symmetry-breaking pitchfork of the symmetric swing); it is not followed.
+Both tests compare signs only, so the verdict does not depend on the
+interval (``lam_scale``). The Neimark-Sacker test function also vanishes
+at a neutral saddle (a real pair with ``mu_1 mu_2 = 1``), which is no
+bifurcation: an event is kept only when the number of complex multipliers
+outside the unit circle changes across the step and the located point
+has a complex multiplier of modulus 1 (to :data:`NS_MODULUS_TOL`).
 
 A sign change is located by regula falsi (Illinois) on the arclength
 between the two points, each trial point corrected onto the branch, to
@@ -213,8 +220,11 @@ class Branch:
 
 @dataclass
 class Result:
+    """Branches (the first through the start), the located bifurcations, and the converged start point."""
+
     branches: list[Branch]
     bifurcations: list[Bifurcation]
+    start: Point | None = None
 
 
 class ContinuationError(RuntimeError):
@@ -225,14 +235,21 @@ class EvaluationFailed(Exception):
     """A problem could not evaluate its map (e.g. a diverged orbit); the step is retried smaller."""
 
 
-#: A located zero of det(P' - I) is a fold when the tangent's parameter component is below this
-#: (it vanishes at a fold), otherwise a branch point. Only det(P' - I) changing sign triggers either:
-#: the tangent's parameter component alone flickers in sign where a branch is nearly vertical.
-FOLD_TANGENT = 1e-3
+#: A located Neimark-Sacker point has a complex multiplier with | |mu| - 1 | below this (the
+#: location is to ``locate_tol`` in arclength, so a true crossing is far closer).
+NS_MODULUS_TOL = 1e-3
+
+#: Imaginary part [-] above which a multiplier counts as complex (eigvals of a real matrix return
+#: real pairs with round-off imaginary parts of about 1e-16 relative).
+COMPLEX_IMAG = 1e-8
 
 #: Corrector iterations allowed while locating a bifurcation: next to a branch point the bordered
 #: Jacobian is singular and Newton converges only linearly (about halving the error per iteration).
 LOCATE_ITERATIONS = 50
+
+#: Trial points of a bifurcation location that may fail to correct before it gives up (each retry
+#: halves the distance to a bracket end, so the bracket shrinks; see :meth:`Continuation.locate`).
+LOCATE_RETRIES = 12
 
 #: What a failed trial step may raise: the parameter left its range, or the map failed.
 _STEP_FAILURES = (PendsweepError, EvaluationFailed)
@@ -340,6 +357,9 @@ class Continuation:
         self.problem = problem
         self.settings = settings or Settings()
         self.bounds = (min(bounds), max(bounds))
+        #: +1 or -1: the first march heads from ``bounds[0]`` towards ``bounds[1]`` (a decreasing
+        #: interval continues downward first, as with a negative ``ds`` in BifurcationKit).
+        self.direction = 1.0 if bounds[1] >= bounds[0] else -1.0
         self.progress = progress or (lambda n: None)
 
     # .. corrections ..
@@ -510,10 +530,11 @@ class Continuation:
             distance = scaled.problem.subperiod_distance(point.x, point.info)
             if distance < 1e-6:
                 return [p for _, p in sorted(located, key=lambda e: e[0])] + [point], REACHED
-            if kind == FOLD and abs(point.tangent[-1]) > FOLD_TANGENT:
-                kind = BRANCH_POINT  # det(P' - I) = 0 where the branch does not turn: another branch crosses
-            if kind == NEIMARK_SACKER and not self._complex_on_circle(point.multipliers):
-                continue  # neutral saddle (real pair with mu1 mu2 = 1)
+            if kind == FOLD and not lam_turns:
+                kind = BRANCH_POINT  # det(P' - I) = 0 where the parameter does not turn back: another branch crosses
+            if kind == NEIMARK_SACKER and not self._complex_pair_crosses(prev.multipliers, new.multipliers,
+                                                                          point.multipliers):
+                continue  # e.g. a neutral saddle (real pair with mu1 mu2 = 1)
             vector = None
             if kind == PERIOD_DOUBLING:
                 w, v = np.linalg.eig(scaled.problem.evaluate(point.x, point.lam).jacobian)
@@ -557,30 +578,44 @@ class Continuation:
         return None
 
     @staticmethod
-    def _complex_on_circle(mu: np.ndarray) -> bool:
-        pair = mu[np.argsort(np.abs(np.abs(mu) - 1.0))[:2]]
-        return bool(np.all(np.abs(pair.imag) > 1e-6))
+    def _complex_pair_crosses(before: np.ndarray, after: np.ndarray, located: np.ndarray) -> bool:
+        """Whether a complex-conjugate pair of multipliers crosses the unit circle (a Neimark-Sacker point).
+
+        The number of complex multipliers outside the circle must differ
+        between the step's ends ``before`` and ``after``, and the ``located``
+        point must have a complex multiplier on the circle.
+        """
+
+        def outside(mu: np.ndarray) -> int:
+            return int(np.sum((np.abs(mu.imag) > COMPLEX_IMAG) & (np.abs(mu) > 1.0)))
+
+        complex_mu = located[np.abs(located.imag) > COMPLEX_IMAG]
+        on_circle = complex_mu.size > 0 and float(np.abs(np.abs(complex_mu) - 1.0).min()) < NS_MODULUS_TOL
+        return outside(before) != outside(after) and on_circle
 
     def locate(self, scaled: _Scaled, prev: Point, kind: str, ds: float, f0: float, f1: float, new: Point):
         """Regula falsi (Illinois) on the arclength ``s`` in ``(0, ds)`` for the zero of test function ``kind``.
 
-        Returns ``(s, point)``, or ``None`` when a trial point cannot be
-        corrected while the bracket is still wider than a tenth of the step.
-        Newton converges only linearly next to a branch point (the bordered
-        Jacobian is singular there), so a failure inside a narrow bracket
-        returns the bracket end with the smaller test function instead.
-
+        Returns ``(s, point)``, or ``None`` when trial points cannot be
+        corrected. The bordered Jacobian is singular at a branch point, and
+        Newton converges only linearly next to it: a trial that fails is
+        replaced by the midpoint between it and a bracket end (alternately),
+        which shrinks the bracket, up to :data:`LOCATE_RETRIES` times; a
+        failure inside a bracket narrower than a tenth of the step returns
+        the bracket end with the smaller test function.
         """
         value = lambda pt: test_functions(pt.multipliers)[kind]
         u_prev = scaled.pack(prev.x, prev.lam)
         lo, hi, f_lo, f_hi = 0.0, ds, f0, f1
         best, s = new, ds
         ends = {0.0: (abs(f0), prev), ds: (abs(f1), new)}  # bracket ends: |test function|, point
-        side = 0
+        side, failures, retry = 0, 0, None
         for _ in range(60):
             if hi - lo < self.settings.locate_tol:
                 break
             s = hi - f_hi * (hi - lo) / (f_hi - f_lo) if f_hi != f_lo else 0.5 * (lo + hi)
+            if retry is not None:
+                s, retry = retry, None
             if not (lo < s < hi):
                 s = 0.5 * (lo + hi)
             u, ok, _ = self.correct_arclength(scaled, u_prev + s * prev.tangent, prev.tangent, LOCATE_ITERATIONS)
@@ -589,6 +624,10 @@ class Continuation:
             except _STEP_FAILURES:
                 best = None
             if best is None:
+                failures += 1
+                if failures <= LOCATE_RETRIES and hi - lo > self.settings.locate_tol:
+                    retry = 0.5 * (lo + s) if failures % 2 else 0.5 * (s + hi)
+                    continue
                 if hi - lo > 0.1 * ds:
                     return None
                 s = min((lo, hi), key=lambda e: ends[e][0])
@@ -611,7 +650,7 @@ class Continuation:
 
     # .. start, both directions, branch switching ..
     def start(self, scaled: _Scaled, x0: np.ndarray, lam0: float) -> Point:
-        """Newton at fixed ``lam0`` from ``x0``; the tangent points towards larger parameter."""
+        """Newton at fixed ``lam0`` from ``x0``; the tangent points towards ``bounds[1]`` (:attr:`direction`)."""
         try:
             x, ok, updates = self.correct_fixed(scaled, x0, lam0)
         except EvaluationFailed as exc:
@@ -622,7 +661,7 @@ class Continuation:
                 f"last updates {', '.join(f'{v:.1e}' for v in updates[-3:])}: give a start closer to an orbit"
             )
         e = np.zeros(scaled.n + 1)
-        e[-1] = 1.0
+        e[-1] = self.direction
         return self.make_point(scaled, scaled.pack(x, lam0), e)
 
     def branch_both_ways(self, scaled: _Scaled, start: Point, index: int, found: list[Bifurcation]) -> Branch:
@@ -640,7 +679,8 @@ class Continuation:
         self._periods = [self.problem.period]  # per branch index
         self._origins: dict[int, int] = {}  # branch index -> index in found of its period doubling
         scaled = _Scaled(self.problem, self.settings)
-        branches = [self.branch_both_ways(scaled, self.start(scaled, x0, lam0), 0, found)]
+        start = self.start(scaled, x0, lam0)
+        branches = [self.branch_both_ways(scaled, start, 0, found)]
         problems = [self.problem]
         handled = 0
         while handled < len(found):
@@ -665,7 +705,7 @@ class Continuation:
             branches.append(Branch(child.period, [pd_point, first] + points, ["period doubling", end],
                                    f"period doubling at {bif.lam:.6g}"))
             problems.append(child)
-        return Result(branches, found)
+        return Result(branches, found, start)
 
     @staticmethod
     def _ends_at(branch: Branch, bif: Bifurcation, parent: MapProblem) -> bool:

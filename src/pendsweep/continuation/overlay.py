@@ -115,8 +115,9 @@ def draw_continuation(ax: Axes, doc: dict[str, Any], observable: str = "theta_pe
         style = dict(BIFURCATION_MARKERS[bif["type"]])
         label = style.pop("label")
         ys = observed[bif["branch"]][i]
+        # Not clipped: a bifurcation on the axes' edge (e.g. at the interval's end) stays whole.
         ax.scatter(np.full(ys.size, bif["value"]), ys, label=None if label in labelled else label, zorder=4,
-                   linewidths=1.2, **style)
+                   linewidths=1.2, clip_on=False, **style)
         labelled.add(label)
 
 
@@ -149,6 +150,13 @@ def _overlay(ax: Axes, doc: dict[str, Any], observable: str) -> None:
     ax.legend(loc="upper left", fontsize=7, markerscale=1.5)
 
 
+def wrapped_title(title: str, width: int) -> str:
+    """``title`` broken into lines of at most ``width`` characters (a long title is not cut off at the right)."""
+    import textwrap
+
+    return "\n".join(textwrap.wrap(title, width)) or title
+
+
 def plot_continuation(docs: Sequence[dict[str, Any]], output: Path, observable: str = "theta_peak",
                       title: str | None = None) -> Path:
     """Continuation documents alone (no sweep) into ``output`` (PNG/PDF/SVG)."""
@@ -172,7 +180,7 @@ def plot_continuation(docs: Sequence[dict[str, Any]], output: Path, observable: 
         fixed = {k: v for k, v in cfg["model"].items() if k in ("alpha", "fe", "M", "b1", "b3") and k != parameter}
         title = "continuation, " + ", ".join(f"{k} = {v:g} {PARAM_SPECS[k].unit}" for k, v in fixed.items())
         title += f", eps = {cfg['eps']:g} rad/s"
-    ax.set_title(title, fontsize=9)
+    ax.set_title(wrapped_title(title, 90), fontsize=9)
     output.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(output, dpi=150)
     return output

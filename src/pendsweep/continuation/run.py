@@ -8,6 +8,7 @@ The JSON document (issue 15)::
                                             "multipliers": [[re, im], ...], "max_multiplier": m,
                                             "stable": bool}]}],
      "branch_ends": [{"branch": i, "origin": ..., "ends": [first end, last end]}],
+     "start_shift": d,
      "kind": "continuation", "config": {...}, "config_hash": ..., "package_version": ..., "created": ...}
 
 ``section`` is the state at forcing phase 0 [m, m/s, rad, rad/s];
@@ -16,7 +17,11 @@ The JSON document (issue 15)::
 in arclength order; located bifurcation points are included in their
 branch. ``branch-point`` (a multiplier +1 without a fold, such as the
 symmetry-breaking pitchfork of the swing near 54 N) extends the issue's three
-types. ``config`` holds everything needed to recompute the document.
+types. ``start_shift`` is how far Newton moved a given start section
+(scaled max-norm: state in units of ``l``, ``l w_e``, 1 rad, ``w_e``; 0
+for the semi-trivial start). Points of branch 0 run from the far end
+behind the start, through the start, towards ``--to`` (downward when
+``--to`` < ``--from``). ``config`` holds everything needed to recompute the document.
 """
 
 from __future__ import annotations
@@ -190,6 +195,7 @@ def document(result: Result, config: ContinuationConfig) -> dict[str, Any]:
         "branches": [{"period": b.period, "points": [point(p) for p in b.points]} for b in result.branches],
         "branch_ends": [{"branch": i, "origin": b.origin, "ends": list(b.ends)} for i, b in enumerate(result.branches)],
     }
+    doc["start_shift"] = start_shift(result, config)
     doc.update(run_metadata("continuation", config.to_dict()))
     return doc
 
@@ -225,65 +231,115 @@ def read_json(path: Path) -> dict[str, Any]:
     return doc
 
 
-#: Relative repeat tolerance of recorded sections for a sweep point to count as a start orbit.
+#: Repeat tolerance of the normalised recorded sections (the classifier's normalisation,
+#: :func:`pendsweep.classify.section_scales`) for a sweep point to count as a start orbit: ten times
+#: the classifier's ``PERIODIC_TOL`` - only a Newton start, which need not be exact.
 START_REPEAT_TOL = 1e-2
 
+#: A start orbit that Newton moves further than this (scaled max-norm, state in units of ``l``,
+#: ``l w_e``, 1 rad, ``w_e``; theta wrapped) is reported: Newton may have found another orbit.
+START_SHIFT_WARN = 0.1
 
-def section_period(sections: np.ndarray) -> int | None:
-    """Smallest ``n`` with the last ``n`` recorded sections repeating the ``n`` before them, or ``None``.
 
-    ``sections`` is ``(periods, 4)`` [m, m/s, rad, rad/s]; each component is
-    compared relative to its range over the record (theta wrapped), to
-    :data:`START_REPEAT_TOL` - only a Newton start, which need not be exact.
-    Rotating orbits qualify (the section is wrapped).
+def section_period(sections: np.ndarray, y_absmax: float, params: ModelParams) -> int | None:
+    """Smallest ``n`` with the recorded sections repeating after ``n`` periods, or ``None``.
+
+    ``sections`` is ``(periods, 4)`` [m, m/s, rad, rad/s]; ``y_absmax`` the
+    record's largest |y| [m]. The sections are normalised as the classifier
+    normalises them (``y/Y, ydot/(w_e Y), theta, thetadot/w_p``, theta
+    wrapped; :func:`pendsweep.classify.section_scales`) and compared with
+    :func:`pendsweep.classify.section_period` to :data:`START_REPEAT_TOL`,
+    so every point the sweep labels ``periodic-n`` qualifies (with a period
+    of at most ``n``). Rotating orbits qualify (the section is wrapped).
     """
-    size = np.maximum(np.ptp(sections, axis=0), np.array([1e-6, 1e-5, 1e-3, 1e-2]))
-    for n in range(1, sections.shape[0] // 2 + 1):
-        d = sections[-n:] - sections[-2 * n : -n]
-        d[:, 2] = (d[:, 2] + np.pi) % (2 * np.pi) - np.pi
-        if np.all(np.abs(d) <= START_REPEAT_TOL * size):
-            return n
-    return None
+    from ..classify import section_period as classify_period
+
+    Y = y_absmax if math.isfinite(y_absmax) and y_absmax > 0 else 1.0
+    scales = np.array([Y, params.omega_e * Y, 1.0, params.omega_p])
+    n = classify_period(sections, scales, START_REPEAT_TOL)
+    return n or None
+
+
+def _start_from_sweep(path: Path, parameter: str, value: float) -> tuple[tuple[float, ...], float, int]:
+    """Section, value and period of the first branch's sweep point nearest ``value`` (:func:`start_from_file`)."""
+    df, meta = read_results(path)
+    config = meta.get("config", {})
+    swept = config.get("parameter")
+    if swept != parameter:
+        raise ConfigError(f"{str(path)!r} sweeps {swept!r}, not {parameter!r}")
+    first = df[(df["direction"] == df["direction"].iloc[0]) & (df["start"] == 0) & (df["status"] == "ok")]
+    if first.empty:
+        raise ConfigError(f"{str(path)!r} holds no finished point to start from")
+    values = np.sort(first[parameter].unique())
+    nearest = float(values[np.argmin(np.abs(values - value))])
+    rows = first[first[parameter] == nearest].sort_values("period")
+    sections = rows[["y_sec", "ydot_sec", "theta_sec", "thetadot_sec"]].to_numpy(dtype=float)
+    params = ModelParams.from_mapping(config.get("model", {})).replace(**{parameter: nearest})
+    period = section_period(sections, float(rows["y_absmax"].max()), params)
+    motion = str(rows["motion"].iloc[-1]) if "motion" in rows else ""
+    if motion.startswith("periodic-"):  # the sweep's own verdict, reached with a tighter tolerance
+        period = int(motion.split("-")[1])
+    if period is None:
+        raise ConfigError(
+            f"{str(path)!r} at {parameter} = {nearest:g} is {motion or 'unclassified'!r}, not periodic: its "
+            f"normalised sections do not repeat (to {START_REPEAT_TOL:g}) with a period of at most "
+            f"{(len(sections) - 1) // 2}; choose another --start-value"
+        )
+    return tuple(sections[-1]), nearest, period
+
+
+def _number(path: Path, key: str, raw: Any, accepted: str, integer: bool = False) -> float:
+    """``raw`` as a finite float (an integer when ``integer``), else a ConfigError naming ``key``."""
+    ok = isinstance(raw, (int, float)) and not isinstance(raw, bool) and math.isfinite(raw)
+    if ok and integer:
+        ok = float(raw).is_integer() and raw >= 1
+    if not ok:
+        raise ConfigError(f"start file {str(path)!r}: {key} = {json.dumps(raw)} must be {accepted}")
+    return float(raw)
 
 
 def start_from_file(path: Path, parameter: str, value: float) -> tuple[tuple[float, ...], float, int]:
     """A start orbit ``(section, parameter value, period)`` from a file.
 
     * a sweep result (``.parquet``): the point of the first branch whose value
-      is nearest ``value``, its last recorded section, and the period with
-      which its recorded sections repeat (:func:`section_period`; rotating
-      orbits included);
+      is nearest ``value``, its last recorded section, and its period (the
+      sweep's ``periodic-n`` label, otherwise :func:`section_period`;
+      rotating orbits included);
     * a JSON object ``{"value": v, "section": [4 numbers], "period": k}``
-      (``period`` defaults to 1), for example one point of a continuation
-      document with its branch's period added.
+      (``period`` an integer >= 1, default 1), for example one point of a
+      continuation document with its branch's period added.
+
+    Raises ConfigError (exit 2) naming the offending value otherwise.
     """
     path = Path(path)
     if path.suffix == ".parquet":
-        df, meta = read_results(path)
-        swept = meta.get("config", {}).get("parameter")
-        if swept != parameter:
-            raise ConfigError(f"{str(path)!r} sweeps {swept!r}, not {parameter!r}")
-        first = df[(df["direction"] == df["direction"].iloc[0]) & (df["start"] == 0) & (df["status"] == "ok")]
-        if first.empty:
-            raise ConfigError(f"{str(path)!r} holds no finished point to start from")
-        values = np.sort(first[parameter].unique())
-        nearest = float(values[np.argmin(np.abs(values - value))])
-        rows = first[first[parameter] == nearest].sort_values("period")
-        sections = rows[["y_sec", "ydot_sec", "theta_sec", "thetadot_sec"]].to_numpy(dtype=float)
-        period = section_period(sections)
-        if period is None:
-            motion = str(rows["motion"].iloc[-1]) if "motion" in rows else "unclassified"
-            raise ConfigError(
-                f"{str(path)!r} at {parameter} = {nearest:g} is {motion!r}: its recorded sections do not repeat "
-                f"(to {START_REPEAT_TOL:g}) with a period of at most {len(sections) // 2}; choose another --start-value"
-            )
-        return tuple(sections[-1]), nearest, period
+        return _start_from_sweep(path, parameter, value)
     try:
-        data = json.loads(path.read_text())
+        data = json.loads(path.read_bytes().decode("utf-8"))
     except FileNotFoundError:
         raise ConfigError(f"no start file at {str(path)!r}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"start file {str(path)!r} is not a readable UTF-8 JSON file ({exc.__class__.__name__}); "
+                          "give a sweep result (.parquet) or JSON {\"value\", \"section\", \"period\"}") from None
     except json.JSONDecodeError as exc:
         raise ConfigError(f"start file {str(path)!r} is not valid JSON: {exc}") from None
     if not isinstance(data, dict) or "section" not in data or "value" not in data:
         raise ConfigError(f"start file {str(path)!r} must hold {{\"value\": v, \"section\": [4 numbers], \"period\": k}}")
-    return tuple(data["section"]), float(data["value"]), int(data.get("period", 1))
+    section = data["section"]
+    if not isinstance(section, list) or len(section) != 4:
+        raise ConfigError(f"start file {str(path)!r}: section = {json.dumps(section)} must be a list of 4 numbers "
+                          "[y m, ydot m/s, theta rad, thetadot rad/s]")
+    numbers = tuple(_number(path, f"section[{i}]", v, "a finite number") for i, v in enumerate(section))
+    start_value = _number(path, "value", data["value"], f"a finite number ({parameter} [{PARAM_SPECS[parameter].unit}])")
+    period = int(_number(path, "period", data.get("period", 1), "an integer >= 1 [forcing periods]", integer=True))
+    return numbers, start_value, period
+
+
+def start_shift(result: Result, config: ContinuationConfig) -> float:
+    """Scaled max-norm (theta wrapped) of how far Newton moved the given start section (0 without one)."""
+    if config.start_section is None or result.start is None:
+        return 0.0
+    problem = config.problem()
+    d = np.asarray(result.start.x) - np.asarray(config.start_section)
+    d[2] = (d[2] + np.pi) % (2 * np.pi) - np.pi
+    return float(np.abs(d / problem.scale).max())

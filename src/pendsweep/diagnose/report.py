@@ -114,8 +114,14 @@ def _figures(diag: Diagnosis, outdir: Path) -> list[Path]:
         ax.set_title("corr(nominal residual, Fe)", fontsize=9)
         ax.legend(fontsize=7)
         k += 1
-    ex_m = extrema(t, rp.meas["theta"], 3 * rp.noise["theta"] + 0.005)
     ax, ax2 = axes[k], axes[k + 1]
+    if "theta" not in rp.meas:  # the pendulum never moved (a constant channel is not compared): no decay to show
+        for a in (ax, ax2):
+            a.text(0.5, 0.5, "theta constant: no swing", ha="center", va="center", transform=a.transAxes)
+            a.set_axis_off()
+        files.append(_save(fig, outdir / "signatures.png"))
+        return files
+    ex_m = extrema(t, rp.meas["theta"], 3 * rp.noise["theta"] + 0.005)
     lines = ("-", "--") if rp.kind == "free_decay" else ("", "")  # forced swings: clouds, not curves
     for label, theta, style in (("measured", rp.meas["theta"], "k."), ("nominal", diag.nominal.sim["theta"], "C0." + lines[0]), ("extended", ext.sim["theta"], "C3x" + lines[1])):
         if not np.all(np.isfinite(theta)):

@@ -126,8 +126,6 @@ def residual_spectrum(residual: np.ndarray, dt: float) -> pd.DataFrame:
 def summarize(replay, nominal_sim: dict[str, np.ndarray]) -> dict[str, Any]:
     """Numbers of every signature for the report (residuals are of the nominal model)."""
     out: dict[str, Any] = {}
-    t = replay.t
-    theta = replay.meas["theta"]
     for c in replay.channels:
         res = nominal_sim[c] - replay.meas[c]
         spec = residual_spectrum(res[np.isfinite(res)], replay.dt)
@@ -142,9 +140,12 @@ def summarize(replay, nominal_sim: dict[str, np.ndarray]) -> dict[str, Any]:
         # The actuator's delay seen directly: x against the command.
         xc = cross_correlation(replay.meas["y"], replay.meas["y_cmd"], replay.dt, 0.05)
         out["x_lags_y_cmd_by_s"] = float(xc.lag[int(np.argmax(xc["corr"].to_numpy()))])
-    ex = extrema(t, theta, min_amplitude=3 * replay.noise["theta"] + 0.005)
-    # Decay and backbone describe a free swing; a forced swing's amplitude is set by the forcing.
-    if replay.kind == "free_decay" and len(ex) >= 3:
+    if replay.kind != "free_decay" or "theta" not in replay.meas:
+        return out  # decay and backbone describe a free swing; a forced swing's amplitude is set by the forcing
+    # Turning points only where the data move: near rest, noise and quantisation make spurious ones.
+    moving = replay.moving
+    ex = extrema(replay.t[moving], replay.meas["theta"][moving], min_amplitude=3 * replay.noise["theta"] + 0.005)
+    if len(ex) >= 3:
         mids = 0.5 * (ex.theta.to_numpy()[:-1] + ex.theta.to_numpy()[1:])
         out["theta_turning_point_midline"] = float(np.median(mids))
         env = pd.DataFrame({"t": ex.t, "amplitude": np.abs(ex.theta - np.median(mids))})

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 from pathlib import Path
 
 from matplotlib.axes import Axes
 
 from ..backends import make_backend
-from ..continuation.overlay import draw_continuation
+from ..continuation.overlay import draw_continuation, wrapped_title
 from ..continuation.run import ContinuationConfig, run_continuation, write_json
 from ..hopf import hopf_simulate
 from ..params import ModelParams
@@ -118,22 +119,34 @@ def draw_threshold(ax: Axes, quick: bool) -> None:
     ax.set_ylabel(r"max $|\theta|$ over the orbit [rad]")
     ax.grid(alpha=0.3, which="both")
     ax.legend(loc="center right", fontsize=6)
-    ax.set_title("(c) fe = 2.5 Hz, Table IV damping: the unstable period-2 orbit is the kick threshold", fontsize=8)
+    ax.set_title(
+        wrapped_title("(c) fe = 2.5 Hz, Table IV damping: the unstable period-2 orbit is the kick threshold", 75),
+        fontsize=8,
+    )
 
 
 @figure("fig11_continuation")
 def fig11_continuation(outdir: Path, quick: bool) -> list[Path]:
     """Fig. 11(a) and (b): continuation branches (solid stable, dashed unstable) over the sweeps; (c) thresholds."""
-    fig = new_figure((20, 5.2))
+    fig = new_figure((20, 6.2))
     axes = fig.subplots(1, 3)
     draw_threshold(axes[2], quick)
     for ax, name in zip(axes, PANELS):
         draw_bifurcation(ax, [read_results(panel_sweep(name, outdir, quick))])
         for doc in panel_continuations(name, outdir, quick):
             draw_continuation(ax, doc)
-        ax.legend(loc="upper left", fontsize=6, markerscale=1.5)
+        # Below the axes: inside, the legend covers the rotating branch near theta = pi.
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=3, fontsize=6, markerscale=1.5)
+        ax.margins(x=0.02)
+        # Room beyond +-pi: the rotating branch runs along theta = +-pi, clear of the motion strip
+        # (bottom) and the motion legend (top right).
+        ax.set_ylim(-1.12 * math.pi, 1.32 * math.pi)
         ax.set_title(
-            f"{load_sweep(SWEEPS_DIR / f'{name}.toml').description}; branches: tanh(w/eps) damping, eps = 1e-3 rad/s",
+            wrapped_title(
+                f"{load_sweep(SWEEPS_DIR / f'{name}.toml').description}; "
+                f"branches: tanh(w/eps) damping, eps = 1e-3 rad/s",
+                75,
+            ),
             fontsize=8,
         )
     path = outdir / f"fig11_continuation{'-quick' if quick else ''}.png"
