@@ -7,21 +7,11 @@ from pathlib import Path
 
 import click
 
-from ..continuation import ContinuationError
-from ..continuation.run import (
-    CONTINUABLE,
-    START_SHIFT_WARN,
-    ContinuationConfig,
-    run_continuation,
-    start_from_file,
-    write_json,
-)
 from ..errors import ConfigError
 from ..params import PARAM_SPECS
-from ..results import check_writable, read_metadata
-from ._app import FINITE, main
-from ._checks import model_sets
-from ._sweep import load_model_file
+from ._app import FINITE, LazyChoice, main
+from ._checks import FIGURE_SUFFIXES, check_output, model_sets
+from ._sweep import load_model_file, read_sweep_metadata
 
 
 def _aliases(parameter: str) -> set[str]:
@@ -30,7 +20,7 @@ def _aliases(parameter: str) -> set[str]:
 
 
 @main.command("continue")
-@click.argument("parameter", type=click.Choice(CONTINUABLE))
+@click.argument("parameter", type=LazyChoice(".continuation.run", "CONTINUABLE"))
 @click.option(
     "--from",
     "start",
@@ -173,6 +163,11 @@ def continue_command(
     switches onto the doubled branch at every period doubling up to
     --max-period. Exit 1 when Newton cannot converge at the start.
     """
+    from ..continuation import ContinuationError
+    from ..continuation.run import START_SHIFT_WARN, ContinuationConfig, run_continuation, start_from_file, write_json
+
+    json_path = check_output(json_path or Path(f"results/continue-{parameter}.json"), "--json", (".json",))
+    check_output(plot_path, "--plot", FIGURE_SUFFIXES)
     model: dict[str, float] = {}
     if model_file is not None:
         # A full parameter file may hold the continued parameter; its value is not used (the interval is).
@@ -180,7 +175,11 @@ def continue_command(
     options = {
         f"--{name}": (name, value) for name, value in (("alpha", alpha), ("fe", fe), ("M", M_)) if value is not None
     }
-    options.update({f"--set {k}": (k, v) for k, v in model_sets(sets).items()})
+    sets = model_sets(sets)
+    twice = sorted({name for name, _ in options.values()} & sets.keys())
+    if twice:
+        raise ConfigError(f"--{twice[0]} and --set {twice[0]}={sets[twice[0]]:g} both fix {twice[0]}; give one")
+    options.update({f"--set {k}": (k, v) for k, v in sets.items()})
     for option, (name, value) in options.items():
         if name in _aliases(parameter):
             raise ConfigError(
@@ -209,12 +208,8 @@ def continue_command(
         max_period=max_period,
         newton_tol=newton_tol,
     )
-    json_path = json_path or Path(f"results/continue-{parameter}.json")
-    check_writable(json_path)
-    if plot_path is not None and plot_path.suffix.lower() not in {".png", ".pdf", ".svg"}:
-        raise ConfigError(f"plot file {str(plot_path)!r} must end in .png, .pdf or .svg")
     for sweep in overlays:  # refuse unreadable or other-parameter sweeps before the run, not after
-        swept = read_metadata(sweep).get("config", {}).get("parameter")
+        swept = read_sweep_metadata(sweep, "--overlay")["config"].get("parameter")
         if swept != parameter:
             raise ConfigError(f"--overlay {str(sweep)!r} sweeps {swept!r}, not {parameter!r}")
     progress = sys.stderr.isatty() if progress is None else progress
