@@ -27,7 +27,9 @@ def reference_arrays() -> dict[str, np.ndarray]:
     ref["continue"] = cont[cols].to_numpy(np.float64)
     # Fresh sweep (batched kernel), mixed steps per period (fe differs).
     fresh = run_sweep(
-        SweepConfig("fe", (2.2, 2.3, 2.5, 2.7), model={"alpha": 12.0}, mode="fresh", transient_periods=6, record_periods=4)
+        SweepConfig(
+            "fe", (2.2, 2.3, 2.5, 2.7), model={"alpha": 12.0}, mode="fresh", transient_periods=6, record_periods=4
+        )
     )
     ref["fresh"] = fresh[cols].to_numpy(np.float64)
     # Scalar emulated point, signum per step and per stage, and its trace.
@@ -67,7 +69,23 @@ def reference_arrays() -> dict[str, np.ndarray]:
     cmdd = np.zeros(500)
     out4 = np.empty((499, 4))
     substructured_replay(
-        np.array([0.0, 0.0, 0.4, 0.0]), q.kernel_array(), q.M1, q.C1, q.M2, q.C2, f, fh, 1.0, 1.0, 0.012, 1e-3, 4, cmd, cmdd, 0, out4
+        np.array([0.0, 0.0, 0.4, 0.0]),
+        q.kernel_array(),
+        q.M1,
+        q.C1,
+        q.M2,
+        q.C2,
+        f,
+        fh,
+        1.0,
+        1.0,
+        0.012,
+        1e-3,
+        4,
+        cmd,
+        cmdd,
+        0,
+        out4,
     )
     ref["substructured_replay"] = np.concatenate([out4.ravel(), cmd, cmdd])
     # Floquet multipliers of the semi-trivial solution.

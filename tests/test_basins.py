@@ -21,6 +21,7 @@ from click.testing import CliRunner
 from scipy.integrate import solve_ivp
 
 from pendsweep.attractors import MATCH_TOL, SETTLE_TOL, cycle_distance, settling
+from pendsweep.backends._batch import run_batch
 from pendsweep.basins import (
     BasinConfig,
     EmulatedMap,
@@ -30,7 +31,6 @@ from pendsweep.basins import (
     settle_runs,
     summarize,
 )
-from pendsweep.backends._batch import run_batch
 from pendsweep.classify import section_difference, section_period
 from pendsweep.cli import main
 from pendsweep.kernels import N_RECORD_COLUMNS
@@ -199,8 +199,15 @@ def test_settling_rotation_number_and_rest():
     assert found.rotation_number[0] == pytest.approx(2 / 3)
     assert found.motion[0] == "rotating"
     # A quasi-periodic rotation: one turn every period, section never repeating.
-    drift = np.stack([np.zeros(120), np.zeros(120), np.angle(np.exp(1j * 0.37 * np.arange(120) ** 1.01)),
-                      5 + np.sin(np.arange(120))], axis=1)
+    drift = np.stack(
+        [
+            np.zeros(120),
+            np.zeros(120),
+            np.angle(np.exp(1j * 0.37 * np.arange(120) ** 1.01)),
+            5 + np.sin(np.arange(120)),
+        ],
+        axis=1,
+    )
     found = settling(_records(drift, np.ones(120)), np.ones(4))
     assert found.settled[0] and found.period[0] == 0 and found.rotation_number[0] == 1
     assert found.motion[0] == "rotating"
@@ -283,8 +290,10 @@ def test_both_phases_of_period_two_are_visited():
     _, labels, attractors = summarize(runs, 600)
     a = attractors[0]
     assert a.motion == "periodic-2" and (labels == 0).sum() > 40
-    phase = [int(np.argmin(np.abs(section_difference(a.cycle, runs.cycle[i, 0], a.scales)).max(axis=1)))
-             for i in np.flatnonzero(labels == 0)]
+    phase = [
+        int(np.argmin(np.abs(section_difference(a.cycle, runs.cycle[i, 0], a.scales)).max(axis=1)))
+        for i in np.flatnonzero(labels == 0)
+    ]
     assert set(phase) == {0, 1}
 
 
@@ -315,8 +324,22 @@ def test_resume_after_interruption_gives_the_same_file(tmp_path):
 def test_cli_basins_json_and_bad_input(tmp_path):
     runner = CliRunner()
     out = tmp_path / "b.json"
-    args = ["basins", "--alpha", "30", "--fe", "2.5", "--grid", "6x5", "--max-periods", "400",
-            "-o", str(tmp_path / "b.parquet"), "--json", str(out), "--no-progress"]
+    args = [
+        "basins",
+        "--alpha",
+        "30",
+        "--fe",
+        "2.5",
+        "--grid",
+        "6x5",
+        "--max-periods",
+        "400",
+        "-o",
+        str(tmp_path / "b.parquet"),
+        "--json",
+        str(out),
+        "--no-progress",
+    ]
     result = runner.invoke(main, args)
     assert result.exit_code == 0, result.output
     summary = json.loads(out.read_text())
@@ -325,18 +348,43 @@ def test_cli_basins_json_and_bad_input(tmp_path):
     assert set(summary["settling_periods"]) >= {"median", "q90"}
     assert summary["runs"] == 30
     scan = tmp_path / "scan.json"
-    result = runner.invoke(main, ["basins", "alpha", "--from", "30", "--to", "31", "--step", "1", "--samples", "12",
-                                  "--max-periods", "300", "-o", str(tmp_path / "s.parquet"), "--json", str(scan),
-                                  "--plot", str(tmp_path / "s.png"), "--no-progress"])
+    result = runner.invoke(
+        main,
+        [
+            "basins",
+            "alpha",
+            "--from",
+            "30",
+            "--to",
+            "31",
+            "--step",
+            "1",
+            "--samples",
+            "12",
+            "--max-periods",
+            "300",
+            "-o",
+            str(tmp_path / "s.parquet"),
+            "--json",
+            str(scan),
+            "--plot",
+            str(tmp_path / "s.png"),
+            "--no-progress",
+        ],
+    )
     assert result.exit_code == 0, result.output
     summary = json.loads(scan.read_text())
     assert summary["values"] == [30.0, 31.0] and len(summary["unsettled_after_100"]) == 2
-    for cls, fractions in summary["classes"].items():
+    for fractions in summary["classes"].values():
         assert len(fractions) == 2
     assert all(sum(f[i] for f in summary["classes"].values()) == pytest.approx(1.0) for i in range(2))
     assert (tmp_path / "s.png").exists()
-    for bad, word in ((["--grid", "0x5"], "--grid"), (["--theta", "2:1"], "--theta"), (["--samples", "0"], "samples"),
-                      (["--max-periods", "5"], "max_periods")):
+    for bad, word in (
+        (["--grid", "0x5"], "--grid"),
+        (["--theta", "2:1"], "--theta"),
+        (["--samples", "0"], "samples"),
+        (["--max-periods", "5"], "max_periods"),
+    ):
         r = runner.invoke(main, ["basins", "--alpha", "30", *bad, "-o", str(tmp_path / "x.parquet")])
         assert r.exit_code == 2 and word in r.output, r.output
         assert "Traceback" not in r.output
@@ -346,8 +394,25 @@ def test_cli_map_with_boundaries(tmp_path):
     from pendsweep.maps import MapConfig, hopf_boundaries
 
     runner = CliRunner()
-    result = runner.invoke(main, ["map", "alpha", "fe", "--alpha", "5:35:3", "--fe", "2.4:2.6:2", "--max-periods", "100",
-                                  "-o", str(tmp_path / "m.parquet"), "--plot", str(tmp_path / "m.png"), "--no-progress"])
+    result = runner.invoke(
+        main,
+        [
+            "map",
+            "alpha",
+            "fe",
+            "--alpha",
+            "5:35:3",
+            "--fe",
+            "2.4:2.6:2",
+            "--max-periods",
+            "100",
+            "-o",
+            str(tmp_path / "m.parquet"),
+            "--plot",
+            str(tmp_path / "m.png"),
+            "--no-progress",
+        ],
+    )
     assert result.exit_code == 0, result.output
     assert (tmp_path / "m.png").exists()
     r = runner.invoke(main, ["map", "alpha", "fe", "--alpha", "5:35", "--fe", "2.5", "-o", str(tmp_path / "x.parquet")])
@@ -364,8 +429,9 @@ def test_dask_executor_gives_the_local_rows():
 
     config = BasinConfig("alpha", (30.0, 40.0), {"fe": 2.5}, samples=24, max_periods=300)
     local = run_basins(config, chunk_starts=8)
-    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
-                                       silence_logs=40)
+    cluster = distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None, silence_logs=40
+    )
     try:
         with distributed.Client(cluster) as client:
             remote = run_basins(config, chunk_starts=8, executor=DaskExecutor(client))

@@ -34,12 +34,14 @@ def test_sincos_poly_within_two_ulp_on_1e7_arguments():
     rng = np.random.default_rng(7)
     # The pendulum angle (rewrapped every period, rotations within it), the
     # forcing phase, tiny angles near rest, and points next to multiples of pi/2.
-    x = np.concatenate([
-        rng.uniform(-40 * np.pi, 40 * np.pi, 6_000_000),
-        rng.uniform(0, 2 * np.pi, 2_000_000),
-        rng.uniform(-1e-3, 1e-3, 1_000_000),
-        np.resize(np.arange(-80, 81) * (np.pi / 2), 1_000_000) + rng.normal(0, 1e-9, 1_000_000),
-    ])
+    x = np.concatenate(
+        [
+            rng.uniform(-40 * np.pi, 40 * np.pi, 6_000_000),
+            rng.uniform(0, 2 * np.pi, 2_000_000),
+            rng.uniform(-1e-3, 1e-3, 1_000_000),
+            np.resize(np.arange(-80, 81) * (np.pi / 2), 1_000_000) + rng.normal(0, 1e-9, 1_000_000),
+        ]
+    )
     assert x.size == 10_000_000
     s = np.empty_like(x)
     c = np.empty_like(x)
@@ -176,7 +178,9 @@ def test_fresh_and_multistart_sweeps_use_the_batched_kernel(monkeypatch):
         return original(self, params, *args, **kw)
 
     monkeypatch.setattr(EmulatedBackend, "run_points", counting)
-    config = SweepConfig("alpha", (10.0, 20.0, 30.0), mode="multistart", starts=3, transient_periods=30, record_periods=4)
+    config = SweepConfig(
+        "alpha", (10.0, 20.0, 30.0), mode="multistart", starts=3, transient_periods=30, record_periods=4
+    )
     df = run_sweep(config, task_points=4)
     assert calls == [4, 4, 1]  # 9 units in tasks of 4
     backend = EmulatedBackend()
@@ -215,13 +219,22 @@ def test_hopf_simulate_rows_run_batched_in_lockstep_and_match_the_scalar_kernel(
 
     calls = []
     original = EmulatedBackend.run_points
-    monkeypatch.setattr(EmulatedBackend, "run_points", lambda self, ps, *a, **k: calls.append(len(ps)) or original(self, ps, *a, **k))
+    monkeypatch.setattr(
+        EmulatedBackend, "run_points", lambda self, ps, *a, **k: calls.append(len(ps)) or original(self, ps, *a, **k)
+    )
     config = HopfConfig(omega_hat=(0.95, 1.0, 1.05), methods=("simulate",), periods=120, tol=0.5)
     rows = [r.iloc[0] for r in hopf_simulate_rows(config, [(0, 0), (0, 1), (0, 2)])]
     assert calls[0] == 3  # the three bisections share every kernel call
     for i, row in enumerate(rows):
-        ref = hopf_simulate(config.params_at(i, 0), _ScalarOnly(), kick=config.kick, periods=config.periods,
-                            settle_periods=config.settle_periods, tol=config.tol, alpha_max=config.alpha_max)
+        ref = hopf_simulate(
+            config.params_at(i, 0),
+            _ScalarOnly(),
+            kick=config.kick,
+            periods=config.periods,
+            settle_periods=config.settle_periods,
+            tol=config.tol,
+            alpha_max=config.alpha_max,
+        )
         assert row["status"] == ref["status"] == "ok" and row["runs"] == ref["runs"]
         assert row["alpha_H"] == ref["alpha_H"]  # the same bisection decisions
         assert row["growth_above"] == pytest.approx(ref["growth_above"], rel=1e-6)
@@ -250,7 +263,9 @@ def test_a_point_does_not_depend_on_its_chunk_neighbours():
     remainder loop, so the two must compute the same operations.
     """
     rng = np.random.default_rng(1)
-    params = [TABLE_IV.replace(alpha=a, fe=f) for a, f in zip(np.linspace(36, 42, 64), np.tile([2.5, 2.5, 2.3, 2.7], 16))]
+    params = [
+        TABLE_IV.replace(alpha=a, fe=f) for a, f in zip(np.linspace(36, 42, 64), np.tile([2.5, 2.5, 2.3, 2.7], 16))
+    ]
     states = np.column_stack([np.zeros(64), np.zeros(64), rng.uniform(-np.pi, np.pi, 64), rng.uniform(-7, 7, 64)])
     together = run_batch(params, states, 40, 6, chunk=64)
     for i in (0, 1, 5, 37, 63):  # chaotic and rotating starts at 36-42 N amplify any difference

@@ -3,7 +3,6 @@
 import math
 
 import matplotlib.legend
-
 import numpy as np
 import pytest
 
@@ -16,10 +15,11 @@ from pendsweep.classify import (
     lyapunov_estimate,
     two_trajectory_log_stretch,
 )
-from pendsweep.params import FIG9_CO, FIG9_PO, FIG11A
+from pendsweep.kernels._layout import RECORD_INDEX as REC
+from pendsweep.kernels._layout import SECTION_COLUMNS
+from pendsweep.params import FIG9_CO, FIG9_PO
 from pendsweep.status import Status
 from pendsweep.sweep import SweepConfig, run_sweep
-from pendsweep.kernels._layout import RECORD_INDEX as REC, SECTION_COLUMNS
 
 UNIT = np.ones(4)  # constructed sections are already dimensionless
 RECORD = 20
@@ -164,8 +164,14 @@ def test_bifurcation_plot_shades_motion_bands():
     from pendsweep.plotting import draw_bifurcation
     from pendsweep.sweep import sweep_metadata
 
-    config = SweepConfig(parameter="alpha", values=(5.0, 30.0, 40.0), model={"fe": 2.5}, mode="fresh",
-                         transient_periods=100, record_periods=20)
+    config = SweepConfig(
+        parameter="alpha",
+        values=(5.0, 30.0, 40.0),
+        model={"fe": 2.5},
+        mode="fresh",
+        transient_periods=100,
+        record_periods=20,
+    )
     fig, ax = plt.subplots()
     draw_bifurcation(ax, [(run_sweep(config), sweep_metadata(config))])
     legends = [child for child in ax.get_children() if isinstance(child, matplotlib.legend.Legend)]
@@ -199,7 +205,10 @@ def test_batched_evidence_gives_the_labels_of_point_by_point_evidence():
         (30.0, 2.5, 2.5, -2.0),  # periodic-2, decided by the record
     ]
     params = [TABLE_IV.replace(alpha=a, fe=f) for a, f, _, _ in cases]
-    runs = [backend.run_point(q, backend.initial_state(q, 0.0, 0.0, th, thd), 100, 20) for q, (_, _, th, thd) in zip(params, cases)]
+    runs = [
+        backend.run_point(q, backend.initial_state(q, 0.0, 0.0, th, thd), 100, 20)
+        for q, (_, _, th, thd) in zip(params, cases)
+    ]
     fast = classify_runs(backend, params, runs)
     slow = classify_runs(PointByPoint(), params, runs)
     assert [m.label for m in fast] == [m.label for m in slow]

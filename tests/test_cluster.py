@@ -57,17 +57,29 @@ def cluster(tmp_path_factory):
     address = f"tcp://127.0.0.1:{_free_port()}"
     env = dict(os.environ, PYTHONPATH=SRC + os.pathsep + os.environ.get("PYTHONPATH", ""))
     commands = {
-        "scheduler": [DASK, "scheduler", "--host", "127.0.0.1", "--port", address.rsplit(":", 1)[1],
-                      "--no-dashboard"],
-        "worker": [DASK, "worker", address, "--nworkers", "2", "--nthreads", "1", "--host", "127.0.0.1",
-                   "--no-dashboard", "--death-timeout", "60"],
+        "scheduler": [DASK, "scheduler", "--host", "127.0.0.1", "--port", address.rsplit(":", 1)[1], "--no-dashboard"],
+        "worker": [
+            DASK,
+            "worker",
+            address,
+            "--nworkers",
+            "2",
+            "--nthreads",
+            "1",
+            "--host",
+            "127.0.0.1",
+            "--no-dashboard",
+            "--death-timeout",
+            "60",
+        ],
     }
     procs, client = [], None
     try:
         for name, cmd in commands.items():
             with open(logs / f"{name}.log", "wb") as log:
-                procs.append(subprocess.Popen(cmd, env=env, stdout=log, stderr=subprocess.STDOUT,
-                                              start_new_session=True))
+                procs.append(
+                    subprocess.Popen(cmd, env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+                )
         client = distributed.Client(address, timeout="60s", set_as_default=False)
         client.wait_for_workers(2, timeout=120)
         yield address, client
@@ -86,20 +98,46 @@ def test_cli_sweep_and_hopf_on_the_cluster_equal_local_runs(cluster, tmp_path):
     address, _ = cluster
     runner = CliRunner()
     # The failing command (shorter): a multistart sweep through --scheduler.
-    sweep = ["alpha", "--from", "30", "--to", "45", "--step", "5", "--mode", "multistart", "--starts", "8",
-             "--transient-periods", "30", "--record-periods", "5", "--no-progress"]
+    sweep = [
+        "alpha",
+        "--from",
+        "30",
+        "--to",
+        "45",
+        "--step",
+        "5",
+        "--mode",
+        "multistart",
+        "--starts",
+        "8",
+        "--transient-periods",
+        "30",
+        "--record-periods",
+        "5",
+        "--no-progress",
+    ]
     local = runner.invoke(main, [*sweep, "-o", str(tmp_path / "local.parquet")])
-    remote = runner.invoke(main, [*sweep, "--executor", "dask", "--scheduler", address,
-                                  "-o", str(tmp_path / "dask.parquet")])
+    remote = runner.invoke(
+        main, [*sweep, "--executor", "dask", "--scheduler", address, "-o", str(tmp_path / "dask.parquet")]
+    )
     assert local.exit_code == 0 and remote.exit_code == 0, remote.output
     a, b = read_results(tmp_path / "local.parquet")[0], read_results(tmp_path / "dask.parquet")[0]
     assert _record_bytes(a) == _record_bytes(b)
     pd.testing.assert_frame_equal(a, b, check_exact=True)
-    hopf = ["hopf", "--what", "0.95,1.0,1.05", "--method", "analytic,floquet,simulate", "--periods", "40",
-            "--no-progress"]
+    hopf = [
+        "hopf",
+        "--what",
+        "0.95,1.0,1.05",
+        "--method",
+        "analytic,floquet,simulate",
+        "--periods",
+        "40",
+        "--no-progress",
+    ]
     local = runner.invoke(main, [*hopf, "-o", str(tmp_path / "hl.parquet")])
-    remote = runner.invoke(main, [*hopf, "--executor", "dask", "--scheduler", address,
-                                  "-o", str(tmp_path / "hd.parquet")])
+    remote = runner.invoke(
+        main, [*hopf, "--executor", "dask", "--scheduler", address, "-o", str(tmp_path / "hd.parquet")]
+    )
     assert local.exit_code == 0 and remote.exit_code == 0, remote.output
     a, b = read_results(tmp_path / "hl.parquet")[0], read_results(tmp_path / "hd.parquet")[0]
     assert (a["status"] == "ok").all() and len(a) == 9
@@ -108,8 +146,9 @@ def test_cli_sweep_and_hopf_on_the_cluster_equal_local_runs(cluster, tmp_path):
 
 def test_worker_killed_mid_run_costs_only_its_task(cluster, tmp_path):
     address, client = cluster
-    config = SweepConfig("alpha", tuple(np.linspace(10.0, 40.0, 12)), mode="fresh",
-                         transient_periods=1500, record_periods=4)
+    config = SweepConfig(
+        "alpha", tuple(np.linspace(10.0, 40.0, 12)), mode="fresh", transient_periods=1500, record_periods=4
+    )
     out = tmp_path / "scan.parquet"
     finished = {}
 

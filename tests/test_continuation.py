@@ -58,7 +58,9 @@ def test_jacobian_matches_central_differences_of_the_rhs(eps):
         sgn, dsgn = damping_sign(z[3], eps, held)
         jac = np.array(eq11_jacobian(tuple(z), 3.0, sgn, dsgn, q)).reshape(4, 4)
         h = 1e-6 * np.array([0.02, 0.3, 1.0, 0.2])
-        fd = np.column_stack([(rhs(z + h[j] * e, held) - rhs(z - h[j] * e, held)) / (2 * h[j]) for j, e in enumerate(np.eye(4))])
+        fd = np.column_stack(
+            [(rhs(z + h[j] * e, held) - rhs(z - h[j] * e, held)) / (2 * h[j]) for j, e in enumerate(np.eye(4))]
+        )
         assert np.allclose(jac, fd, rtol=1e-6, atol=1e-6 * np.abs(fd).max())
 
 
@@ -68,11 +70,17 @@ def test_monodromy_is_the_derivative_of_the_discrete_map():
     x = np.array([-0.01, -0.4, 0.8, -4.0])
     phi = problem.evaluate(x, 25.0).jacobian
     h = 1e-6 * problem.scale
-    fd = np.column_stack([
-        (problem.evaluate(x + h[j] * e, 25.0, tangent=False).residual
-         - problem.evaluate(x - h[j] * e, 25.0, tangent=False).residual) / (2 * h[j]) + e
-        for j, e in enumerate(np.eye(4))
-    ])
+    fd = np.column_stack(
+        [
+            (
+                problem.evaluate(x + h[j] * e, 25.0, tangent=False).residual
+                - problem.evaluate(x - h[j] * e, 25.0, tangent=False).residual
+            )
+            / (2 * h[j])
+            + e
+            for j, e in enumerate(np.eye(4))
+        ]
+    )
     scaled_error = np.abs((phi - fd) * problem.scale[None, :] / problem.scale[:, None]).max()
     assert scaled_error < 1e-6
 
@@ -187,8 +195,18 @@ def test_coulomb_fold_converges_in_eps_and_brackets_the_brute_force_sweep(tmp_pa
     fold = folds[-1]
     swing = min((p for p in result.branches[0].points if p.stable), key=lambda p: abs(p.lam - fold - 0.05))
     values = (round(fold - 0.05, 4), round(fold + 0.05, 4))
-    df = run_sweep(SweepConfig("alpha", values, model={"fe": 2.5}, mode="fresh", initial=tuple(swing.x),
-                               transient_periods=1000, record_periods=4), tmp_path / "bracket.parquet")
+    df = run_sweep(
+        SweepConfig(
+            "alpha",
+            values,
+            model={"fe": 2.5},
+            mode="fresh",
+            initial=tuple(swing.x),
+            transient_periods=1000,
+            record_periods=4,
+        ),
+        tmp_path / "bracket.parquet",
+    )
     final = df.groupby("alpha")["theta_absmax"].max()
     assert final[values[0]] < 0.0013  # below the fold: at rest (one encoder pulse)
     assert final[values[1]] > 0.05  # above: still on the swing
@@ -199,11 +217,39 @@ def test_cli_continue_starts_from_a_sweep_result(tmp_path):
     from pendsweep.sweep import SweepConfig, run_sweep
 
     sweep = tmp_path / "s.parquet"
-    run_sweep(SweepConfig("alpha", (29.5, 30.0), model={"fe": 2.5, "b1": 0.0, "b3": 0.0}, mode="fresh",
-                          transient_periods=400, record_periods=6), sweep)
+    run_sweep(
+        SweepConfig(
+            "alpha",
+            (29.5, 30.0),
+            model={"fe": 2.5, "b1": 0.0, "b3": 0.0},
+            mode="fresh",
+            transient_periods=400,
+            record_periods=6,
+        ),
+        sweep,
+    )
     out = tmp_path / "c.json"
-    r = CliRunner().invoke(main, ["continue", "alpha", "--from", "28", "--to", "31", "--set", "b1=0", "--set", "b3=0",
-                                  "--start", str(sweep), "--start-value", "30", "--json", str(out)])
+    r = CliRunner().invoke(
+        main,
+        [
+            "continue",
+            "alpha",
+            "--from",
+            "28",
+            "--to",
+            "31",
+            "--set",
+            "b1=0",
+            "--set",
+            "b3=0",
+            "--start",
+            str(sweep),
+            "--start-value",
+            "30",
+            "--json",
+            str(out),
+        ],
+    )
     assert r.exit_code == 0, r.output
     doc = json.loads(out.read_text())
     assert doc["branches"][0]["period"] == 2 and doc["config"]["start_value"] == 30.0
@@ -361,8 +407,9 @@ class PitchforkOrFold(_KnownMap):
 
 
 @pytest.mark.parametrize("lam_scale", [2.0, 2000.0])
-@pytest.mark.parametrize("pitchfork, start, kind", [(True, (0.0, -0.5, -0.5), BRANCH_POINT),
-                                                    (False, (-0.5, 0.25, 0.25), FOLD)])
+@pytest.mark.parametrize(
+    "pitchfork, start, kind", [(True, (0.0, -0.5, -0.5), BRANCH_POINT), (False, (-0.5, 0.25, 0.25), FOLD)]
+)
 def test_fold_or_branch_point_does_not_depend_on_the_interval(lam_scale, pitchfork, start, kind):
     """A multiplier +1 is a fold only where the parameter turns back, whatever the parameter's scale."""
     result = Continuation(PitchforkOrFold(pitchfork, lam_scale), (-1.0, 1.0)).run(np.array(start[:2]), start[2])
@@ -383,8 +430,27 @@ def test_decreasing_interval_continues_downward_first():
 # -- the command line -------------------------------------------------------------------
 def test_cli_continue_writes_the_issue_schema(tmp_path):
     out, png = tmp_path / "c.json", tmp_path / "c.png"
-    r = CliRunner().invoke(main, ["continue", "alpha", "--from", "14", "--to", "20", "--set", "b1=0", "--set", "b3=0",
-                                  "--json", str(out), "--plot", str(png), "--max-period", "2"])
+    r = CliRunner().invoke(
+        main,
+        [
+            "continue",
+            "alpha",
+            "--from",
+            "14",
+            "--to",
+            "20",
+            "--set",
+            "b1=0",
+            "--set",
+            "b3=0",
+            "--json",
+            str(out),
+            "--plot",
+            str(png),
+            "--max-period",
+            "2",
+        ],
+    )
     assert r.exit_code == 0, r.output
     assert "period-doubling at alpha = 16.0971" in r.output
     doc = json.loads(out.read_text())
@@ -401,8 +467,25 @@ def test_cli_continue_writes_the_issue_schema(tmp_path):
     start = tmp_path / "start.json"
     pick = min(doc["branches"][1]["points"], key=lambda p: abs(p["value"] - 18.0))
     start.write_text(json.dumps({"value": pick["value"], "section": pick["section"], "period": 2}))
-    r = CliRunner().invoke(main, ["continue", "alpha", "--from", "17", "--to", "20", "--set", "b1=0", "--set", "b3=0",
-                                  "--start", str(start), "--json", str(tmp_path / "d.json")])
+    r = CliRunner().invoke(
+        main,
+        [
+            "continue",
+            "alpha",
+            "--from",
+            "17",
+            "--to",
+            "20",
+            "--set",
+            "b1=0",
+            "--set",
+            "b3=0",
+            "--start",
+            str(start),
+            "--json",
+            str(tmp_path / "d.json"),
+        ],
+    )
     assert r.exit_code == 0, r.output
     again = json.loads((tmp_path / "d.json").read_text())
     end = again["branches"][0]["points"][-1]
@@ -441,16 +524,19 @@ def test_cli_continue_bad_input_exits_2(args, needle):
 def test_cli_continue_bad_start_file_exits_2(tmp_path, content, needle):
     start = tmp_path / "c.json"
     start.write_bytes(content if isinstance(content, bytes) else content.encode())
-    r = CliRunner().invoke(main, ["continue", "alpha", "--from", "20", "--to", "40", "--start", str(start),
-                                  "--json", str(tmp_path / "x.json")])
+    r = CliRunner().invoke(
+        main,
+        ["continue", "alpha", "--from", "20", "--to", "40", "--start", str(start), "--json", str(tmp_path / "x.json")],
+    )
     assert r.exit_code == 2, r.output
     assert needle in r.output and "Traceback" not in r.output and len(r.output.strip().splitlines()) <= 2
 
 
 @pytest.mark.parametrize("option", [["--alpha", "99"], ["--set", "alpha=99"]])
 def test_cli_continue_refuses_a_value_for_the_continued_parameter(tmp_path, option):
-    r = CliRunner().invoke(main, ["continue", "alpha", "--from", "20", "--to", "40", *option,
-                                  "--json", str(tmp_path / "x.json")])
+    r = CliRunner().invoke(
+        main, ["continue", "alpha", "--from", "20", "--to", "40", *option, "--json", str(tmp_path / "x.json")]
+    )
     assert r.exit_code == 2 and "continued parameter" in r.output, r.output
     assert not (tmp_path / "x.json").exists()
 
@@ -461,8 +547,24 @@ def test_cli_continue_warns_when_newton_leaves_the_start_orbit(tmp_path, alpha_r
     swing = min(result.branches[1].points, key=lambda p: abs(p.lam - 30.0))
     start = tmp_path / "p2.json"
     start.write_text(json.dumps({"value": swing.lam, "section": list(swing.x)}))  # no "period": 1
-    args = ["continue", "alpha", "--from", "29", "--to", "31", "--set", "b1=0", "--set", "b3=0", "--max-period", "1",
-            "--start", str(start), "--json", str(tmp_path / "x.json")]
+    args = [
+        "continue",
+        "alpha",
+        "--from",
+        "29",
+        "--to",
+        "31",
+        "--set",
+        "b1=0",
+        "--set",
+        "b3=0",
+        "--max-period",
+        "1",
+        "--start",
+        str(start),
+        "--json",
+        str(tmp_path / "x.json"),
+    ]
     r = CliRunner().invoke(main, args)
     assert r.exit_code == 0, r.output
     doc = json.loads((tmp_path / "x.json").read_text())
@@ -475,8 +577,23 @@ def test_cli_continue_warns_when_newton_leaves_the_start_orbit(tmp_path, alpha_r
 
 def test_cli_continue_eps_0_with_coulomb_friction_prints_a_note(tmp_path):
     """--eps 0 drops b1 from the Jacobian: rest period-doubles where the friction-free pendulum does; a note says so."""
-    r = CliRunner().invoke(main, ["continue", "alpha", "--from", "15", "--to", "17", "--eps", "0",
-                                                  "--max-period", "1", "--json", str(tmp_path / "x.json")])
+    r = CliRunner().invoke(
+        main,
+        [
+            "continue",
+            "alpha",
+            "--from",
+            "15",
+            "--to",
+            "17",
+            "--eps",
+            "0",
+            "--max-period",
+            "1",
+            "--json",
+            str(tmp_path / "x.json"),
+        ],
+    )
     assert r.exit_code == 0, r.output
     assert "note: --eps 0" in r.stderr and "b1" in r.stderr
 
@@ -504,8 +621,10 @@ def test_cli_continue_runtime_failure_exits_1(tmp_path):
     """A start far from any orbit: Newton fails, a one-line message and exit status 1."""
     start = tmp_path / "bad.json"
     start.write_text(json.dumps({"value": 30.0, "section": [0.05, 2.0, 2.5, 40.0], "period": 1}))
-    r = CliRunner().invoke(main, ["continue", "alpha", "--from", "20", "--to", "40", "--start", str(start),
-                                  "--json", str(tmp_path / "x.json")])
+    r = CliRunner().invoke(
+        main,
+        ["continue", "alpha", "--from", "20", "--to", "40", "--start", str(start), "--json", str(tmp_path / "x.json")],
+    )
     assert r.exit_code == 1, r.output
     assert "Newton did not converge" in r.output
 

@@ -70,7 +70,11 @@ def _labels(params, run, dt=DT) -> list[str]:
     """Motion labels of a batched run's points (classification re-simulates on the CPU at step ``dt``)."""
     backend = make_backend("emulated", dt=dt)
     return [
-        classify_run(backend, q, PointRun(run.records[i], run.states[i], Status.from_code(run.status[i]), int(run.periods_done[i]))).label
+        classify_run(
+            backend,
+            q,
+            PointRun(run.records[i], run.states[i], Status.from_code(run.status[i]), int(run.periods_done[i])),
+        ).label
         for i, q in enumerate(params)
     ]
 
@@ -91,14 +95,30 @@ def simulated(tmp_path_factory):
     params.append(TABLE_IV)
     states = np.vstack([settled, [np.nan, 0.0, 0.1, 0.0]])
     folder = tmp_path_factory.mktemp("cudasim")
-    np.savez(folder / "in.npz", points=np.array([*POINTS, (TABLE_IV.alpha, TABLE_IV.fe)]), states=states,
-             transient=TRANSIENT, record=RECORD, dt=DT)
+    np.savez(
+        folder / "in.npz",
+        points=np.array([*POINTS, (TABLE_IV.alpha, TABLE_IV.fe)]),
+        states=states,
+        transient=TRANSIENT,
+        record=RECORD,
+        dt=DT,
+    )
     (folder / "sweep.json").write_text(json.dumps(sweep_config("cuda").to_dict()))
     env = {**os.environ, "NUMBA_ENABLE_CUDASIM": "1"}
     proc = subprocess.run(
-        [sys.executable, "-c", SIMULATED, str(folder / "in.npz"), str(folder / "out.npz"), str(folder / "sweep.json"),
-         str(folder / "sweep.parquet")],
-        env=env, capture_output=True, text=True, timeout=600,
+        [
+            sys.executable,
+            "-c",
+            SIMULATED,
+            str(folder / "in.npz"),
+            str(folder / "out.npz"),
+            str(folder / "sweep.json"),
+            str(folder / "sweep.parquet"),
+        ],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
     )
     assert proc.returncode == 0, proc.stderr[-3000:]
     out = dict(np.load(folder / "out.npz"))
@@ -111,8 +131,15 @@ def simulated(tmp_path_factory):
 
 def sweep_config(device: str) -> SweepConfig:
     """A small multistart alpha sweep (3 values x 2 seeded starts) on ``device``."""
-    return SweepConfig(parameter="alpha", values=(5.0, 25.0, 45.0), mode="multistart", starts=2,
-                       backend_options={"dt": DT, "device": device}, transient_periods=2, record_periods=4)
+    return SweepConfig(
+        parameter="alpha",
+        values=(5.0, 25.0, 45.0),
+        mode="multistart",
+        starts=2,
+        backend_options={"dt": DT, "device": device},
+        transient_periods=2,
+        record_periods=4,
+    )
 
 
 def _run(out, prefix):
@@ -129,7 +156,7 @@ def test_simulated_float64_records_match_cpu_batched_kernel(simulated):
     assert _scaled_error(gpu.records[ok], cpu.records[ok]) < 1e-9
     assert np.max(np.abs(gpu.states[ok] - cpu.states[ok])) < 1e-9
     # The swinging points really swing (the comparison is not between two pendulums at rest).
-    assert np.all(np.nanmax(cpu.records[1:len(POINTS), :, 1], axis=1) > 0.9)
+    assert np.all(np.nanmax(cpu.records[1 : len(POINTS), :, 1], axis=1) > 0.9)
 
 
 def test_simulated_same_status_codes_and_divergence_as_cpu(simulated):
@@ -187,20 +214,48 @@ def test_simulated_float32_error_is_single_precision_rounding(simulated):
 def test_device_cuda_without_gpu_exits_2(tmp_path):
     if numba.config.ENABLE_CUDASIM or cuda_unavailable_reason() is None:
         pytest.skip("a CUDA device (or the simulator) is available here")
-    args = ["alpha", "--from", "10", "--to", "11", "--points", "2", "--mode", "fresh", "--device", "cuda",
-            "-o", str(tmp_path / "a.parquet")]
+    args = [
+        "alpha",
+        "--from",
+        "10",
+        "--to",
+        "11",
+        "--points",
+        "2",
+        "--mode",
+        "fresh",
+        "--device",
+        "cuda",
+        "-o",
+        str(tmp_path / "a.parquet"),
+    ]
     result = CliRunner().invoke(main, args)
     assert result.exit_code == 2
     message = result.output.strip()
     assert "\n" not in message and "no usable CUDA GPU" in message and "pendsweep[cuda]" in message
     assert not (tmp_path / "a.parquet").exists()
-    result = CliRunner().invoke(main, ["hopf", "--what", "1.0", "--method", "simulate", "--device", "cuda",
-                                       "-o", str(tmp_path / "h.parquet")])
+    result = CliRunner().invoke(
+        main, ["hopf", "--what", "1.0", "--method", "simulate", "--device", "cuda", "-o", str(tmp_path / "h.parquet")]
+    )
     assert result.exit_code == 2 and "no usable CUDA GPU" in result.output
     result = CliRunner().invoke(main, args[:-4] + ["-B", "device=cuda", "-o", str(tmp_path / "b.parquet")])
     assert result.exit_code == 2 and "no usable CUDA GPU" in result.output
-    for command in (["basins", "--alpha", "40", "--grid", "3x3", "--device", "cuda", "-o", str(tmp_path / "g.parquet")],
-                    ["map", "alpha", "fe", "--alpha", "0:45:3", "--fe", "2:3:3", "--device", "cuda", "-o", str(tmp_path / "m.parquet")]):
+    for command in (
+        ["basins", "--alpha", "40", "--grid", "3x3", "--device", "cuda", "-o", str(tmp_path / "g.parquet")],
+        [
+            "map",
+            "alpha",
+            "fe",
+            "--alpha",
+            "0:45:3",
+            "--fe",
+            "2:3:3",
+            "--device",
+            "cuda",
+            "-o",
+            str(tmp_path / "m.parquet"),
+        ],
+    ):
         result = CliRunner().invoke(main, command)
         assert result.exit_code == 2 and "no usable CUDA GPU" in result.output, command
     assert list(tmp_path.iterdir()) == []  # stopped before any result file or its parts were made
@@ -259,7 +314,9 @@ def test_real_gpu_matches_cpu_on_many_points():
         pytest.skip(f"no CUDA GPU: {reason}")
     rng = np.random.default_rng(16)
     n = 1024
-    params = [TABLE_IV.replace(alpha=a, fe=fe) for a, fe in zip(rng.uniform(0, 45, n), rng.choice([2.0, 2.2, 2.5, 2.8], n))]
+    params = [
+        TABLE_IV.replace(alpha=a, fe=fe) for a, fe in zip(rng.uniform(0, 45, n), rng.choice([2.0, 2.2, 2.5, 2.8], n))
+    ]
     states = np.column_stack([np.zeros(n), np.zeros(n), rng.uniform(-0.5, 0.5, n), np.zeros(n)])
     cpu = run_batch(params, states, 0, 30)
     gpu = run_batch(params, states, 0, 30, device="cuda")
@@ -277,4 +334,3 @@ def _subset(run, mask):
     from pendsweep.backends._batch import BatchRun
 
     return BatchRun(*(a[mask] for a in run))
-

@@ -18,7 +18,7 @@ from click.testing import CliRunner
 from pendsweep.cli import main
 from pendsweep.data import find_free_swing_data, write_record
 from pendsweep.diagnose import EFFECTS, Replay, diagnose
-from pendsweep.diagnose.fit import block_test, Fit
+from pendsweep.diagnose.fit import Fit, block_test
 from pendsweep.diagnose.testbench import CALIBRATION_SEEDS, TEST_SEEDS, Case, generate, truth_value
 
 SEED = TEST_SEEDS[0] + 101
@@ -57,8 +57,13 @@ def test_block_test_carries_information_on_zero_blocks():
 
 def test_pendulum_at_rest_effect_found():
     """Forced below the Hopf boundary from rest: theta is exactly constant, y still carries the effect."""
-    case = Case("forced", {"oscillator_damping": truth_value("forced", "oscillator_damping", 0.5, 500.0)},
-                rate=500.0, seed=SEED, theta_init=0.0)
+    case = Case(
+        "forced",
+        {"oscillator_damping": truth_value("forced", "oscillator_damping", 0.5, 500.0)},
+        rate=500.0,
+        seed=SEED,
+        theta_init=0.0,
+    )
     d, js = run(case)
     assert np.ptp(d.replay.record.channel("theta")) == 0.0 and d.replay.constant == ("theta",)
     assert js["cause"] == "oscillator_damping" and js["validation"]["constant_channels"] == ["theta"]
@@ -70,14 +75,21 @@ def test_report_of_a_record_whose_pendulum_never_moves(tmp_path):
     """The report (figures and text) is written for the at-rest case too (theta is not compared)."""
     from pendsweep.diagnose.report import write_report
 
-    case = Case("forced", {"oscillator_damping": truth_value("forced", "oscillator_damping", 0.5, 500.0)},
-                rate=500.0, seed=SEED, theta_init=0.0)
+    case = Case(
+        "forced",
+        {"oscillator_damping": truth_value("forced", "oscillator_damping", 0.5, 500.0)},
+        rate=500.0,
+        seed=SEED,
+        theta_init=0.0,
+    )
     d, _ = run(case)
     files = write_report(d, tmp_path, "at-rest record")
     assert (tmp_path / "signatures.png") in files and all(f.exists() for f in files)
 
 
-@pytest.mark.parametrize("kind, rate", [("free_decay", 500.0), ("forced", 2000.0), ("substructured", 500.0), ("forced", 500.0)])
+@pytest.mark.parametrize(
+    "kind, rate", [("free_decay", 500.0), ("forced", 2000.0), ("substructured", 500.0), ("forced", 500.0)]
+)
 def test_clean_records_give_none_and_nothing_unexplained(kind, rate):
     theta_init = 0.0 if (kind, rate) == ("forced", 500.0) else (1.0 if kind == "free_decay" else 0.3)
     duration = 6.0 if rate > 1000 else (12.0 if kind == "substructured" else 16.0)
@@ -100,8 +112,15 @@ def test_decay_that_stops_early_is_coulomb_and_resting_tail_is_left_out():
 
 
 def test_single_effect_with_three_tones():
-    case = Case("forced", {"oscillator_stiffness": truth_value("forced", "oscillator_stiffness", 0.3, 500.0)},
-                rate=500.0, duration=12.0, seed=SEED + 3, theta_init=0.3, tones=((5.0, 2.2), (2.0, 1.3), (1.0, 3.1)))
+    case = Case(
+        "forced",
+        {"oscillator_stiffness": truth_value("forced", "oscillator_stiffness", 0.3, 500.0)},
+        rate=500.0,
+        duration=12.0,
+        seed=SEED + 3,
+        theta_init=0.3,
+        tones=((5.0, 2.2), (2.0, 1.3), (1.0, 3.1)),
+    )
     _, js = run(case)
     assert js["cause"] == "oscillator_stiffness"
     assert_estimates(js, case.effects)
@@ -109,8 +128,14 @@ def test_single_effect_with_three_tones():
 
 def test_servo_rig_single_effect_gets_no_spurious_second_cause():
     """The replay's pure-delay actuator differs in form from the rig's servo; the verdict stays one cause."""
-    case = Case("substructured", {"platform_mass": truth_value("substructured", "platform_mass", 0.4, 500.0)},
-                rate=500.0, seed=SEED + 4, theta_init=0.3, duration=12.0)
+    case = Case(
+        "substructured",
+        {"platform_mass": truth_value("substructured", "platform_mass", 0.4, 500.0)},
+        rate=500.0,
+        seed=SEED + 4,
+        theta_init=0.3,
+        duration=12.0,
+    )
     _, js = run(case)
     assert js["cause"] == "platform_mass"
     assert_estimates(js, case.effects)
@@ -125,8 +150,14 @@ def test_servo_rig_single_effect_gets_no_spurious_second_cause():
 )
 def test_two_effects_named(kind, effects):
     truths = {c: truth_value(kind, c, u, 500.0) for c, (_, u) in effects.items()}
-    case = Case(kind, truths, rate=500.0, seed=SEED + 5, theta_init=1.0 if kind == "free_decay" else 0.3,
-                duration=20.0 if kind == "free_decay" else 16.0)
+    case = Case(
+        kind,
+        truths,
+        rate=500.0,
+        seed=SEED + 5,
+        theta_init=1.0 if kind == "free_decay" else 0.3,
+        duration=20.0 if kind == "free_decay" else 16.0,
+    )
     _, js = run(case)
     assert set(js["cause"].split("+")) == set(truths)
     assert_estimates(js, truths)
@@ -134,11 +165,22 @@ def test_two_effects_named(kind, effects):
 
 @pytest.mark.parametrize(
     "kind, extra",
-    [("free_decay", {"encoder_nonlinearity": 0.004}), ("forced", {"damping_drift": 1.5}), ("substructured", {"servo_gain": 0.08})],
+    [
+        ("free_decay", {"encoder_nonlinearity": 0.004}),
+        ("forced", {"damping_drift": 1.5}),
+        ("substructured", {"servo_gain": 0.08}),
+    ],
 )
 def test_effect_outside_the_vocabulary_is_flagged_unexplained(kind, extra):
-    case = Case(kind, {}, extra, rate=500.0, seed=SEED + 6, theta_init=1.0 if kind == "free_decay" else 0.3,
-                duration=12.0 if kind == "substructured" else 16.0)
+    case = Case(
+        kind,
+        {},
+        extra,
+        rate=500.0,
+        seed=SEED + 6,
+        theta_init=1.0 if kind == "free_decay" else 0.3,
+        duration=12.0 if kind == "substructured" else 16.0,
+    )
     _, js = run(case)
     assert js["unexplained"] is True
     sig = js["residual_signature"]["record"]
@@ -151,10 +193,28 @@ def test_several_records_of_one_rig_one_answer(tmp_path):
     b2 = truth_value("free_decay", "viscous_damping", 0.5, 500.0)
     paths = []
     for k, theta_init in enumerate((0.7, 1.1, 1.5)):
-        rec = generate(Case("free_decay", {"viscous_damping": b2}, rate=250.0, seed=SEED + 10 + k, theta_init=theta_init, duration=10.0))
+        rec = generate(
+            Case(
+                "free_decay",
+                {"viscous_damping": b2},
+                rate=250.0,
+                seed=SEED + 10 + k,
+                theta_init=theta_init,
+                duration=10.0,
+            )
+        )
         paths += [str(write_record(rec, tmp_path / f"r{k}.csv")[0])]
     # The three damping laws and the length: the candidates a free decay can confuse.
-    causes = ["--cause", "viscous_damping", "--cause", "coulomb_friction", "--cause", "quadratic_drag", "--cause", "pendulum_length"]
+    causes = [
+        "--cause",
+        "viscous_damping",
+        "--cause",
+        "coulomb_friction",
+        "--cause",
+        "quadratic_drag",
+        "--cause",
+        "pendulum_length",
+    ]
     res = CliRunner().invoke(main, ["diagnose", *paths, *causes, "--json", str(tmp_path / "v.json")])
     assert res.exit_code == 0, res.output
     js = json.loads((tmp_path / "v.json").read_text())
@@ -172,8 +232,19 @@ def test_real_free_swings_get_one_answer(tmp_path):
     differed in the damping law); the full vocabulary gives the same verdict (docs).
     """
     paths = [str(_real / f"free_swing_0{k}.txt") for k in (1, 2, 3)]
-    causes = ["--cause", "viscous_damping", "--cause", "coulomb_friction", "--cause", "quadratic_drag", "--cause", "pendulum_length"]
-    res = CliRunner().invoke(main, ["diagnose", *paths, *causes, "--json", str(tmp_path / "v.json"), "--report", str(tmp_path / "rep")])
+    causes = [
+        "--cause",
+        "viscous_damping",
+        "--cause",
+        "coulomb_friction",
+        "--cause",
+        "quadratic_drag",
+        "--cause",
+        "pendulum_length",
+    ]
+    res = CliRunner().invoke(
+        main, ["diagnose", *paths, *causes, "--json", str(tmp_path / "v.json"), "--report", str(tmp_path / "rep")]
+    )
     assert res.exit_code == 0, res.output
     js = json.loads((tmp_path / "v.json").read_text())
     assert js["cause"] != "none" and "pendulum_length" in js["cause"].split("+")

@@ -33,8 +33,9 @@ def _data_bytes(df):
 
 
 def test_dask_executor_gives_the_local_bytes(client):
-    config = SweepConfig("alpha", (5.0, 15.0, 25.0, 35.0), mode="multistart", starts=3, seed=1,
-                         transient_periods=20, record_periods=4)
+    config = SweepConfig(
+        "alpha", (5.0, 15.0, 25.0, 35.0), mode="multistart", starts=3, seed=1, transient_periods=20, record_periods=4
+    )
     local = run_sweep(config, task_points=4)
     remote = run_sweep(config, executor=DaskExecutor(client), task_points=4)
     assert _data_bytes(remote) == _data_bytes(local)
@@ -45,8 +46,9 @@ def test_dask_executor_gives_the_local_bytes(client):
 
 
 def test_killed_worker_costs_only_its_chunk(client, tmp_path):
-    config = SweepConfig("alpha", tuple(np.linspace(10.0, 40.0, 24)), mode="fresh",
-                         transient_periods=600, record_periods=5)
+    config = SweepConfig(
+        "alpha", tuple(np.linspace(10.0, 40.0, 24)), mode="fresh", transient_periods=600, record_periods=5
+    )
     out = tmp_path / "scan.parquet"
     finished = {}
 
@@ -93,8 +95,22 @@ def test_cli_sweep_on_the_cluster(client, tmp_path, monkeypatch):
 
     from pendsweep.cli import main
 
-    common = ["alpha", "--from", "10", "--to", "30", "--step", "10", "--mode", "fresh",
-              "--transient-periods", "10", "--record-periods", "3", "--no-progress"]
+    common = [
+        "alpha",
+        "--from",
+        "10",
+        "--to",
+        "30",
+        "--step",
+        "10",
+        "--mode",
+        "fresh",
+        "--transient-periods",
+        "10",
+        "--record-periods",
+        "3",
+        "--no-progress",
+    ]
     runner = CliRunner()
     local = runner.invoke(main, [*common, "-o", str(tmp_path / "local.parquet")])
     assert local.exit_code == 0, local.output

@@ -132,8 +132,13 @@ def test_scan_resumes_from_parts(tmp_path):
 
 @pytest.mark.parametrize(
     "kwargs",
-    [dict(omega_hat=(-1.0,)), dict(omega_hat=(1.0,), methods=("guess",)), dict(omega_hat=(1.0,), model={"k3": 1e4}),
-     dict(omega_hat=(1.0,), kick=0.0), dict(omega_hat=())],
+    [
+        dict(omega_hat=(-1.0,)),
+        dict(omega_hat=(1.0,), methods=("guess",)),
+        dict(omega_hat=(1.0,), model={"k3": 1e4}),
+        dict(omega_hat=(1.0,), kick=0.0),
+        dict(omega_hat=()),
+    ],
 )
 def test_bad_config_is_a_clear_error(kwargs):
     with pytest.raises(ConfigError):
@@ -152,8 +157,14 @@ def test_cli_single_value_prints_table(tmp_path):
 
 
 @pytest.mark.parametrize(
-    "args", [["--what", "0.9:1.1:x"], ["--what", "1", "--method", "nope"], ["--what", "1", "--set", "b1=-1"],
-             ["--what", "1", "--set", "b1"], ["--what", "1", "--kick", "nan"]]
+    "args",
+    [
+        ["--what", "0.9:1.1:x"],
+        ["--what", "1", "--method", "nope"],
+        ["--what", "1", "--set", "b1=-1"],
+        ["--what", "1", "--set", "b1"],
+        ["--what", "1", "--kick", "nan"],
+    ],
 )
 def test_cli_bad_input_exits_2(tmp_path, args):
     res = CliRunner().invoke(main, ["hopf", *args, "-o", str(tmp_path / "h.parquet"), "--no-progress"])

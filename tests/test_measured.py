@@ -14,7 +14,6 @@ import os
 os.environ.setdefault("MPLBACKEND", "Agg")
 
 import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
 import pytest  # noqa: E402
 from click.testing import CliRunner  # noqa: E402
 from scipy.optimize import brentq  # noqa: E402
@@ -131,7 +130,9 @@ def test_round_trip(tmp_path, suffix):
     write_record(rec, tmp_path / f"r{suffix}")
     back = read_record(tmp_path / f"r{suffix}")
     assert back.kind == "forced" and back.params == rec.params and back.forcing == {"alpha": 5.0, "fe": 2.2}
-    np.testing.assert_allclose(back.data[["t", "theta", "y", "Fe"]].to_numpy(), rec.data.to_numpy(), rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(
+        back.data[["t", "theta", "y", "Fe"]].to_numpy(), rec.data.to_numpy(), rtol=1e-9, atol=1e-12
+    )
 
 
 def _bad(tmp_path, kind="forced", edit=None, meta_edit=None, lines=None):
@@ -199,14 +200,26 @@ def test_free_decay_hidden_effect_found(cause):
 @pytest.mark.parametrize("cause", list(FORCED_RANGES))
 def test_forced_hidden_effect_found(cause):
     truth = draw(cause, FORCED_RANGES, FIG9_PO, seed=6)
-    rec = synthesize("forced", FIG9_PO, {cause: truth}, duration=16, rate=250, seed=6, theta_init=0.3, transient=20, tone2=TONE2)
+    rec = synthesize(
+        "forced", FIG9_PO, {cause: truth}, duration=16, rate=250, seed=6, theta_init=0.3, transient=20, tone2=TONE2
+    )
     check_found(rec, cause, truth)
 
 
 @pytest.mark.parametrize("cause", list(SUB_RANGES))
 def test_substructured_hidden_effect_found(cause):
     truth = draw(cause, SUB_RANGES, FIG9_PO, seed=6)
-    rec = synthesize("substructured", FIG9_PO, {cause: truth}, duration=12, rate=250, seed=6, theta_init=0.3, transient=20, tone2=TONE2)
+    rec = synthesize(
+        "substructured",
+        FIG9_PO,
+        {cause: truth},
+        duration=12,
+        rate=250,
+        seed=6,
+        theta_init=0.3,
+        transient=20,
+        tone2=TONE2,
+    )
     check_found(rec, cause, truth)
 
 
@@ -218,7 +231,17 @@ def test_pendulum_damping_is_named_as_damping_family(kind, factor, min_gain):
     hardly moves, dominate the error (documented limitation)."""
     from pendsweep.diagnose.report import ambiguous_with
 
-    rec = synthesize(kind, FIG9_PO, {"viscous_damping": factor * N.b2}, duration=16, rate=250, seed=2, theta_init=0.3, transient=20, tone2=TONE2)
+    rec = synthesize(
+        kind,
+        FIG9_PO,
+        {"viscous_damping": factor * N.b2},
+        duration=16,
+        rate=250,
+        seed=2,
+        theta_init=0.3,
+        transient=20,
+        tone2=TONE2,
+    )
     d = diagnose(Replay(rec))
     family = {"coulomb_friction", "viscous_damping", "quadratic_drag"}
     assert d.cause in family and d.to_json()["gain"] >= min_gain
@@ -233,8 +256,11 @@ def test_pendulum_damping_is_named_as_damping_family(kind, factor, min_gain):
     ],
 )
 def test_two_hidden_effects_named_by_the_second_round(kind, effects):
-    kw = dict(duration=20, rate=250, seed=5, theta_init=1.0) if kind == "free_decay" else dict(
-        duration=16, rate=250, seed=5, theta_init=0.3, transient=20, tone2=TONE2)
+    kw = (
+        dict(duration=20, rate=250, seed=5, theta_init=1.0)
+        if kind == "free_decay"
+        else dict(duration=16, rate=250, seed=5, theta_init=0.3, transient=20, tone2=TONE2)
+    )
     rec = synthesize(kind, N if kind == "free_decay" else FIG9_PO, effects, **kw)
     js = diagnose(Replay(rec)).to_json()
     assert set(js["cause"].split("+")) == set(effects)
@@ -246,7 +272,16 @@ def test_two_hidden_effects_named_by_the_second_round(kind, effects):
 @pytest.mark.parametrize("seed", [11, 12, 13])
 def test_clean_free_decay_gives_none(seed):
     rng = np.random.default_rng(seed)
-    rec = synthesize("free_decay", N, {}, duration=20, rate=250, seed=seed, theta_init=rng.uniform(0.5, 1.5), thetadot_init=rng.uniform(-1, 1))
+    rec = synthesize(
+        "free_decay",
+        N,
+        {},
+        duration=20,
+        rate=250,
+        seed=seed,
+        theta_init=rng.uniform(0.5, 1.5),
+        thetadot_init=rng.uniform(-1, 1),
+    )
     js = diagnose(Replay(rec)).to_json()
     assert js["cause"] == "none" and js["estimate"] == {} and js["gain"] == 0.0
 
@@ -268,7 +303,12 @@ def test_coulomb_and_viscous_told_apart_at_same_final_amplitude():
         return env.amplitude.iloc[-4:].mean()
 
     target = final_amp(visc)
-    b1 = brentq(lambda b: final_amp(synthesize("free_decay", N, {"coulomb_friction": b}, **kw)) - target, N.b1, 10 * N.b1, xtol=1e-7)
+    b1 = brentq(
+        lambda b: final_amp(synthesize("free_decay", N, {"coulomb_friction": b}, **kw)) - target,
+        N.b1,
+        10 * N.b1,
+        xtol=1e-7,
+    )
     coul = synthesize("free_decay", N, {"coulomb_friction": b1}, **kw)
     assert final_amp(coul) == pytest.approx(target, rel=0.01)
     assert diagnose(Replay(visc)).cause == "viscous_damping"
@@ -304,7 +344,15 @@ def test_fit_damping_recovers_synthetic_per_unit_inertia_values():
     """L to 0.2 %, and the decrement law dA(A) = 2 beta1/w^2 + pi beta2 A/(2 w) + 4/3 beta3 A^2
     to 3 % over the swing's amplitude range (the three coefficients trade off; the law does not)."""
     truth = N.replace(b1=8 * N.b1, b2=6 * N.b2, b3=0.0)
-    rec = synthesize("free_decay", N, {"coulomb_friction": truth.b1, "viscous_damping": truth.b2, "quadratic_drag": 0.0}, duration=15, rate=250, seed=0, theta_init=2.0)
+    rec = synthesize(
+        "free_decay",
+        N,
+        {"coulomb_friction": truth.b1, "viscous_damping": truth.b2, "quadratic_drag": 0.0},
+        duration=15,
+        rate=250,
+        seed=0,
+        theta_init=2.0,
+    )
     fit = fit_damping(rec)
     inertia = truth.m * truth.l**2
     assert fit.physics["L"] == pytest.approx(truth.l, rel=2e-3)
@@ -335,13 +383,49 @@ def test_fit_damping_real_records():
 
 def test_cli_synth_diagnose_report(tmp_path):
     r = CliRunner()
-    res = r.invoke(main, ["synth", str(tmp_path / "rec.csv"), "--effect", "viscous_damping=1.8e-4", "--duration", "15", "--rate", "250", "--seed", "4"])
+    res = r.invoke(
+        main,
+        [
+            "synth",
+            str(tmp_path / "rec.csv"),
+            "--effect",
+            "viscous_damping=1.8e-4",
+            "--duration",
+            "15",
+            "--rate",
+            "250",
+            "--seed",
+            "4",
+        ],
+    )
     assert res.exit_code == 0, res.output
-    res = r.invoke(main, ["diagnose", str(tmp_path / "rec.csv"), "--json", str(tmp_path / "out.json"), "--report", str(tmp_path / "rep")])
+    res = r.invoke(
+        main,
+        [
+            "diagnose",
+            str(tmp_path / "rec.csv"),
+            "--json",
+            str(tmp_path / "out.json"),
+            "--report",
+            str(tmp_path / "rep"),
+        ],
+    )
     assert res.exit_code == 0, res.output
     js = json.loads((tmp_path / "out.json").read_text())
-    assert set(js) == {"cause", "estimate", "uncertainty", "error_before", "error_after", "gain", "candidates",
-                       "explained_share", "unexplained", "noise_floor", "validation", "residual_signature"}
+    assert set(js) == {
+        "cause",
+        "estimate",
+        "uncertainty",
+        "error_before",
+        "error_after",
+        "gain",
+        "candidates",
+        "explained_share",
+        "unexplained",
+        "noise_floor",
+        "validation",
+        "residual_signature",
+    }
     assert js["unexplained"] is False and js["explained_share"] > 0.9
     assert js["validation"]["method"] == "blocked cross-validation" and js["validation"]["folds"] == 5
     assert js["cause"] == "viscous_damping"
@@ -363,7 +447,21 @@ def test_cli_synth_diagnose_report(tmp_path):
 def test_cli_synth_is_seeded(tmp_path):
     r = CliRunner()
     for name in ("a", "b"):
-        r.invoke(main, ["synth", str(tmp_path / f"{name}.parquet"), "--kind", "forced", "--duration", "2", "--transient", "1", "--seed", "9"])
+        r.invoke(
+            main,
+            [
+                "synth",
+                str(tmp_path / f"{name}.parquet"),
+                "--kind",
+                "forced",
+                "--duration",
+                "2",
+                "--transient",
+                "1",
+                "--seed",
+                "9",
+            ],
+        )
     assert (tmp_path / "a.parquet").read_bytes() == (tmp_path / "b.parquet").read_bytes()
     res = r.invoke(main, ["synth", str(tmp_path / "c.csv"), "--effect", "actuator_delay=0.01"])
     assert res.exit_code == 2 and "does not apply to kind 'free_decay'" in res.output
@@ -387,14 +485,42 @@ def test_substructured_loop_converges_to_the_complete_system():
         driven_trace(np.array([0.0, 0.0, 0.5, 0.0]), p.kernel_array(), f, fh, 1.0, dt, ref)
         out = np.empty((n, 4))
         cmd, cmdd = np.zeros(n), np.zeros(n)
-        substructured_replay(np.array([0.0, 0.0, 0.5, 0.0]), p.kernel_array(), p.M1, p.C1, p.M2, p.C2, f, fh, 1.0, 1.0, 0.0, dt, 2, cmd, cmdd, 0, out)
+        substructured_replay(
+            np.array([0.0, 0.0, 0.5, 0.0]),
+            p.kernel_array(),
+            p.M1,
+            p.C1,
+            p.M2,
+            p.C2,
+            f,
+            fh,
+            1.0,
+            1.0,
+            0.0,
+            dt,
+            2,
+            cmd,
+            cmdd,
+            0,
+            out,
+        )
         gaps.append(np.max(np.abs(out[:, 1] - ref[:, 2])))
     slope = np.polyfit(np.log(dts), np.log(gaps), 1)[0]
     assert 0.8 < slope < 1.2 and gaps[-1] < 1e-3
 
 
 def test_substructured_extended_model_moves_the_totals(tmp_path):
-    rec = synthesize("substructured", FIG9_PO, {"platform_mass": 1.3}, duration=12, rate=250, seed=1, theta_init=0.3, transient=20, tone2=TONE2)
+    rec = synthesize(
+        "substructured",
+        FIG9_PO,
+        {"platform_mass": 1.3},
+        duration=12,
+        rate=250,
+        seed=1,
+        theta_init=0.3,
+        transient=20,
+        tone2=TONE2,
+    )
     write_record(rec, tmp_path / "s.parquet")
     res = CliRunner().invoke(main, ["diagnose", str(tmp_path / "s.parquet"), "--report", str(tmp_path / "rep")])
     assert res.exit_code == 0, res.output

@@ -24,8 +24,19 @@ from pendsweep.sweep import SweepConfig, SweepScan, run_sweep, sweep_metadata, v
 SRC = str(Path(__file__).resolve().parents[1] / "src")
 ENV = dict(os.environ, PYTHONUNBUFFERED="1", PYTHONPATH=SRC + os.pathsep + os.environ.get("PYTHONPATH", ""))
 CLI = [sys.executable, "-m", "pendsweep.cli"]
-HOPF_NUMBERS = ["omega_hat", "fe", "M", "alpha_H", "multiplier", "growth_below", "growth_above",
-                "bracket_lo", "bracket_hi", "kick", "runs"]
+HOPF_NUMBERS = [
+    "omega_hat",
+    "fe",
+    "M",
+    "alpha_H",
+    "multiplier",
+    "growth_below",
+    "growth_above",
+    "bracket_lo",
+    "bracket_hi",
+    "kick",
+    "runs",
+]
 
 
 def _parts(out: Path) -> list[Path]:
@@ -60,14 +71,40 @@ def _record_bytes(df: pd.DataFrame) -> dict[str, bytes]:
     "mode_args, config",
     [
         # 480 fresh points: two batched tasks (256 + 224); the kill lands in the second.
-        (["--from", "0", "--to", "20", "--points", "480", "--mode", "fresh", "--record-periods", "4"],
-         SweepConfig("alpha", tuple(value_range(0, 20, points=480)), mode="fresh", transient_periods=300,
-                     record_periods=4)),
+        (
+            ["--from", "0", "--to", "20", "--points", "480", "--mode", "fresh", "--record-periods", "4"],
+            SweepConfig(
+                "alpha", tuple(value_range(0, 20, points=480)), mode="fresh", transient_periods=300, record_periods=4
+            ),
+        ),
         # 13 points x 36 seeded starts: two batched tasks (256 + 212).
-        (["--from", "20", "--to", "26", "--step", "0.5", "--mode", "multistart", "--starts", "36", "--seed", "1",
-          "--record-periods", "10"],
-         SweepConfig("alpha", tuple(value_range(20, 26, 0.5)), mode="multistart", starts=36, seed=1,
-                     transient_periods=300, record_periods=10)),
+        (
+            [
+                "--from",
+                "20",
+                "--to",
+                "26",
+                "--step",
+                "0.5",
+                "--mode",
+                "multistart",
+                "--starts",
+                "36",
+                "--seed",
+                "1",
+                "--record-periods",
+                "10",
+            ],
+            SweepConfig(
+                "alpha",
+                tuple(value_range(20, 26, 0.5)),
+                mode="multistart",
+                starts=36,
+                seed=1,
+                transient_periods=300,
+                record_periods=10,
+            ),
+        ),
     ],
     ids=["fresh", "multistart"],
 )
@@ -84,8 +121,20 @@ def test_killed_sweep_resumes_bit_identical(tmp_path, mode_args, config):
 
 def test_killed_hopf_scan_resumes_bit_identical(tmp_path):
     out = tmp_path / "hopf.parquet"
-    args = ["hopf", "--what", "0.9:1.1:140", "--method", "simulate", "--periods", "40", "-j", "1", "-o", str(out),
-            "--no-progress"]
+    args = [
+        "hopf",
+        "--what",
+        "0.9:1.1:140",
+        "--method",
+        "simulate",
+        "--periods",
+        "40",
+        "-j",
+        "1",
+        "-o",
+        str(out),
+        "--no-progress",
+    ]
     _kill_after_parts(args, out)
     resumed = _resume(args, out)
     config = HopfConfig(omega_hat=tuple(value_range(0.9, 1.1, points=140)), methods=("simulate",), periods=40)
@@ -114,8 +163,9 @@ def test_resume_reruns_a_partly_done_chunk_whole(tmp_path):
     Chaotic multistart points (the issue's 36-42 N) amplify any difference; resuming the last
     5 units of a 16-unit task in a task of their own changed theta by radians before.
     """
-    config = SweepConfig("alpha", (36.0, 40.0), mode="multistart", starts=16, seed=1,
-                         transient_periods=40, record_periods=6)
+    config = SweepConfig(
+        "alpha", (36.0, 40.0), mode="multistart", starts=16, seed=1, transient_periods=40, record_periods=6
+    )
     out = tmp_path / "partial.parquet"
     _partial_run(config, out, [(0, s) for s in range(11)], task_points=16)
     resumed = run_sweep(config, out, task_points=16)
@@ -125,8 +175,9 @@ def test_resume_reruns_a_partly_done_chunk_whole(tmp_path):
 
 
 def test_corrupt_part_is_reported_and_its_units_redone(tmp_path, caplog):
-    config = SweepConfig("alpha", (10.0, 12.0, 14.0), mode="multistart", starts=3, transient_periods=20,
-                         record_periods=3)
+    config = SweepConfig(
+        "alpha", (10.0, 12.0, 14.0), mode="multistart", starts=3, transient_periods=20, record_periods=3
+    )
     out = tmp_path / "corrupt.parquet"
     _partial_run(config, out, [(0, 0), (0, 1), (0, 2), (1, 0), (1, 1), (1, 2), (2, 0)])
     parts = _parts(out)
@@ -149,8 +200,9 @@ def test_parts_carry_the_hash_and_the_config_is_stored_once(tmp_path):
         part_meta = read_metadata(part)
         assert set(part_meta) == {"config_hash", "final_states"} and part_meta["config_hash"] == meta["config_hash"]
     # A part of another configuration among them is refused, not merged.
-    other = SweepConfig("alpha", (10.0, 12.0, 14.0), mode="fresh", model={"fe": 2.3}, transient_periods=5,
-                        record_periods=2)
+    other = SweepConfig(
+        "alpha", (10.0, 12.0, 14.0), mode="fresh", model={"fe": 2.3}, transient_periods=5, record_periods=2
+    )
     foreign = tmp_path / "foreign.parquet"
     _partial_run(other, foreign, [(2, 0)])
     _parts(foreign)[0].rename(out.with_name(out.name + ".parts") / "part-000099-1.parquet")
@@ -193,8 +245,24 @@ def test_second_process_is_refused_at_once(tmp_path):
     from pendsweep.cli import main
 
     out = tmp_path / "shared.parquet"
-    base = ["alpha", "--from", "0", "--to", "45", "--step", "0.5", "--transient-periods", "20000", "--record-periods",
-            "10", "-j", "1", "-o", str(out), "--no-progress"]
+    base = [
+        "alpha",
+        "--from",
+        "0",
+        "--to",
+        "45",
+        "--step",
+        "0.5",
+        "--transient-periods",
+        "20000",
+        "--record-periods",
+        "10",
+        "-j",
+        "1",
+        "-o",
+        str(out),
+        "--no-progress",
+    ]
     first = subprocess.Popen(CLI + base, env=ENV, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     lock = out.with_name(out.name + ".lock")
     try:
@@ -231,8 +299,10 @@ def test_jobs_and_work_are_checked_before_anything_runs(tmp_path):
     [
         (["alpha", "--from", "0", "--to", "4", "-j", "0"], "--jobs = 0"),
         (["hopf", "--what", "1", "--method", "analytic", "-j", "0"], "--jobs = 0"),
-        (["alpha", "--from", "0", "--to", "45", "--mode", "multistart", "--starts", "64", "--max-work", "1e8"],
-         "pass --max-work 3e8 (or --yes)"),
+        (
+            ["alpha", "--from", "0", "--to", "45", "--mode", "multistart", "--starts", "64", "--max-work", "1e8"],
+            "pass --max-work 3e8 (or --yes)",
+        ),
         (["hopf", "--what", "1:2:1000000"], "integration steps"),
         (["alpha", "--from", "0", "--to", "1e308", "--step", "1e300"], "100,000,001 values"),
     ],
@@ -253,8 +323,22 @@ def test_max_work_is_lifted_by_yes(tmp_path):
 
     from pendsweep.cli import main
 
-    args = ["alpha", "--from", "1", "--to", "2", "--transient-periods", "5", "--record-periods", "2", "--max-work", "10",
-            "-o", str(tmp_path / "y.parquet"), "--no-progress"]
+    args = [
+        "alpha",
+        "--from",
+        "1",
+        "--to",
+        "2",
+        "--transient-periods",
+        "5",
+        "--record-periods",
+        "2",
+        "--max-work",
+        "10",
+        "-o",
+        str(tmp_path / "y.parquet"),
+        "--no-progress",
+    ]
     assert CliRunner().invoke(main, args).exit_code == 2
     result = CliRunner().invoke(main, [*args, "--yes"])
     assert result.exit_code == 0, result.output

@@ -34,7 +34,6 @@ from pendsweep.stability import (
 )
 from pendsweep.stability._roots import _generator_eigenvalues
 
-
 # -- Fig. 5, phase margins ------------------------------------------------------------------
 
 
@@ -166,7 +165,9 @@ def test_simulated_critical_delay_matches_theory(index, actuator):
     else:
         theory = servo_delay_margin(loop, 30.0, 0.7, hold=1e-3)  # T = exp(-s tau) G(s), ZOH
     exact = sampled_delay_margin(loop, SampledLoop(actuator=actuator), 0.2)
-    sim = simulated_delay_margin(model, round(0.97 * exact.tau_star, 4), 0.02 * exact.tau_star, actuator=actuator, predictor_order=-1)
+    sim = simulated_delay_margin(
+        model, round(0.97 * exact.tau_star, 4), 0.02 * exact.tau_star, actuator=actuator, predictor_order=-1
+    )
     assert sim.tau_star == pytest.approx(theory.tau_star, rel=0.05)
     assert sim.omega_star == pytest.approx(theory.omega_star, rel=0.05)
     # the backend resolves the delay to its 0.1 ms substep; sigma is interpolated over 2 % steps
@@ -182,16 +183,28 @@ def test_compensation_raises_the_critical_delay_and_simulation_confirms():
     assert comp > none + 0.005
     tau = 0.5 * (none + comp)
     assert simulated_growth(model, tau, actuator="servo", predictor_order=-1).sigma > 0.05
-    assert simulated_growth(model, tau, actuator="servo", predictor_order=1, predictor_points=5, tau_hat=0.018).sigma < -0.05
+    assert (
+        simulated_growth(model, tau, actuator="servo", predictor_order=1, predictor_points=5, tau_hat=0.018).sigma
+        < -0.05
+    )
 
 
 def test_sampled_filter_and_predictors_match_backend():
     """Band-pass force filter, force prediction and y* prediction, all on at once."""
     loop, model = TABLE_II_LOOPS[0], TABLE_II_MODELS[0]
-    cfg = SampledLoop(actuator="servo", predictor_order=1, tau_hat=0.018, filter_band=(0.5, 20.0), filter_frequency=model.fe)
+    cfg = SampledLoop(
+        actuator="servo", predictor_order=1, tau_hat=0.018, filter_band=(0.5, 20.0), filter_frequency=model.fe
+    )
     mu = multipliers(loop, 0.084, cfg)[0]
     g = simulated_growth(
-        model, 0.084, actuator="servo", predictor_order=1, tau_hat=0.018, force_filter=True, filter_low=0.5, filter_high=20.0
+        model,
+        0.084,
+        actuator="servo",
+        predictor_order=1,
+        tau_hat=0.018,
+        force_filter=True,
+        filter_low=0.5,
+        filter_high=20.0,
     )
     assert g.sigma == pytest.approx(math.log(abs(mu)) / 1e-3, abs=0.03)
     assert g.omega == pytest.approx(abs(np.angle(mu)) / 1e-3, rel=0.005)

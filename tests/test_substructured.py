@@ -8,20 +8,20 @@ import numpy as np
 import pytest
 
 from pendsweep.backends import make_backend
+from pendsweep.errors import ConfigError
+from pendsweep.hybrid import run_trace
+from pendsweep.kernels import RECORD_COLUMNS
+from pendsweep.kernels._layout import RECORD_INDEX as REC
 from pendsweep.loop import (
     effective_delay,
     filter_phase,
     phase_to_delay,
     predictor_weights,
 )
-from pendsweep.errors import ConfigError
-from pendsweep.hybrid import run_trace
-from pendsweep.kernels import RECORD_COLUMNS
 from pendsweep.params import ENCODER_RESOLUTION, FIG9_PO, FIG11A
 from pendsweep.results import read_results
 from pendsweep.sweep import SweepConfig, run_sweep
 from pendsweep.sync import sync_ratio, xcorr_delay
-from pendsweep.kernels._layout import RECORD_INDEX as REC
 
 QUIET = dict(
     force_noise=0.0, harmonic3=0.0, harmonic5=0.0, harmonic7=0.0,
@@ -89,7 +89,9 @@ def _critical_transport_delay(p, bandwidth=30.0, zeta=0.7) -> float:
     w = np.linspace(1.0, 200.0, 400001)
     s = 1j * w
     ws = 2 * np.pi * bandwidth
-    loop = ((p.M2 + p.m) * s**2 + p.C2 * s) / (p.M1 * s**2 + p.C1 * s + p.K) * ws**2 / (s**2 + 2 * zeta * ws * s + ws**2)
+    loop = (
+        ((p.M2 + p.m) * s**2 + p.C2 * s) / (p.M1 * s**2 + p.C1 * s + p.K) * ws**2 / (s**2 + 2 * zeta * ws * s + ws**2)
+    )
     cross = np.where(np.diff(np.sign(np.abs(loop) - 1.0)) != 0)[0]
     taus = [((np.pi + np.angle(loop[i])) % (2 * np.pi)) / w[i] for i in cross]
     return min(taus)
@@ -167,7 +169,9 @@ def test_validation_names_the_bad_numbers():
 
 
 def test_sweep_records_match_the_emulated_schema():
-    base = dict(parameter="alpha", values=(16.0, 20.0, 24.0), model=FIG11A.to_dict(), transient_periods=10, record_periods=3)
+    base = dict(
+        parameter="alpha", values=(16.0, 20.0, 24.0), model=FIG11A.to_dict(), transient_periods=10, record_periods=3
+    )
     emu = run_sweep(SweepConfig(**base))
     sub = run_sweep(SweepConfig(**base, backend="substructured"))
     assert list(sub.columns) == list(emu.columns)
@@ -212,7 +216,14 @@ def test_kick_moves_the_true_pendulum():
 
 
 def test_sweep_seed_reaches_the_backend_noise():
-    base = dict(parameter="alpha", values=(5.0,), model=FIG9_PO.to_dict(), backend="substructured", transient_periods=2, record_periods=2)
+    base = dict(
+        parameter="alpha",
+        values=(5.0,),
+        model=FIG9_PO.to_dict(),
+        backend="substructured",
+        transient_periods=2,
+        record_periods=2,
+    )
     assert SweepConfig(**base, seed=11).make_backend().seed == 11
     assert SweepConfig(**base, seed=11, backend_options={"seed": 3}).make_backend().seed == 3
     a, b = (run_sweep(SweepConfig(**base, seed=s)) for s in (1, 2))

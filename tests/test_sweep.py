@@ -47,8 +47,24 @@ def test_long_form_schema_and_row_count():
     config = SweepConfig("alpha", (1.0, 2.0, 3.0), direction="both", **SHORT)
     df = run_sweep(config)
     assert len(df) == 2 * 3 * 3
-    expected = ["alpha", "direction", "point", "start", "period", "theta_peak", "theta_absmax", "y_sec",
-                "ydot_sec", "theta_sec", "thetadot_sec", "y_absmax", "rotations", "kicked", "status", "motion"]
+    expected = [
+        "alpha",
+        "direction",
+        "point",
+        "start",
+        "period",
+        "theta_peak",
+        "theta_absmax",
+        "y_sec",
+        "ydot_sec",
+        "theta_sec",
+        "thetadot_sec",
+        "y_absmax",
+        "rotations",
+        "kicked",
+        "status",
+        "motion",
+    ]
     assert list(df.columns) == expected
     down = df[df.direction == "down"]
     assert down.groupby("point").size().to_dict() == {0: 3, 1: 3, 2: 3}
@@ -149,8 +165,27 @@ def test_unwritable_output_is_a_clear_error(tmp_path):
 def test_killed_sweep_resumes_without_loss_or_duplication(tmp_path):
     """Kill a real sweep process with SIGKILL mid-run, rerun, compare with an uninterrupted run."""
     out = tmp_path / "killed.parquet"
-    args = [sys.executable, "-m", "pendsweep.cli", "alpha", "--from", "0", "--to", "45", "--step", "0.5",
-            "--transient-periods", "60", "--record-periods", "10", "-j", "1", "-o", str(out), "--no-progress"]
+    args = [
+        sys.executable,
+        "-m",
+        "pendsweep.cli",
+        "alpha",
+        "--from",
+        "0",
+        "--to",
+        "45",
+        "--step",
+        "0.5",
+        "--transient-periods",
+        "60",
+        "--record-periods",
+        "10",
+        "-j",
+        "1",
+        "-o",
+        str(out),
+        "--no-progress",
+    ]
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     proc = subprocess.Popen(args, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     parts = out.with_name(out.name + ".parts")

@@ -65,7 +65,9 @@ def test_trace_and_sync_commands(tmp_path):
     res = runner.invoke(main, ["trace", str(out), "--periods", "5", "--transient-periods", "5", "-B", "seed=3"])
     assert res.exit_code == 0, res.output
     df, meta = read_trace(out)
-    assert {"t", "Fe", "y", "command", "x", "x_meas", "theta", "theta_true", "Fs", "Fs_true", "sync_error"} <= set(df.columns)
+    assert {"t", "Fe", "y", "command", "x", "x_meas", "theta", "theta_true", "Fs", "Fs_true", "sync_error"} <= set(
+        df.columns
+    )
     assert meta["backend_options"]["seed"] == 3 and meta["status"] == "ok"
     assert meta["effective_delay_s"] == pytest.approx(0.01794, abs=1e-5)
     fig = tmp_path / "sync.png"
@@ -98,7 +100,12 @@ def test_bad_input_exits_2(tmp_path, args):
 def test_sync_rejects_an_emulated_trace(tmp_path):
     out = tmp_path / "emu.parquet"
     runner = CliRunner()
-    assert runner.invoke(main, ["trace", str(out), "--backend", "emulated", "--periods", "2", "--transient-periods", "0"]).exit_code == 0
+    assert (
+        runner.invoke(
+            main, ["trace", str(out), "--backend", "emulated", "--periods", "2", "--transient-periods", "0"]
+        ).exit_code
+        == 0
+    )
     res = runner.invoke(main, ["sync", str(out)])
     assert res.exit_code == 2 and "substructured" in res.output
     assert isinstance(read_trace(out)[0], pd.DataFrame)

@@ -259,9 +259,7 @@ def settling(
             settled[steady_rows] = True
             turns[steady_rows] = np.rint(rotations[steady_rows, -1]).astype(np.int64)
             changed = rotations[steady_rows] != rotations[steady_rows, -1:]
-            onset[steady_rows] = np.where(
-                changed.any(axis=1), periods - np.argmax(changed[:, ::-1], axis=1), 0
-            )
+            onset[steady_rows] = np.where(changed.any(axis=1), periods - np.argmax(changed[:, ::-1], axis=1), 0)
     swing = np.fmax.reduce(rec[:, first:, REC_THETA_ABSMAX], axis=1)  # NaN rows ignored
     at_rest = settled & (swing < rest_threshold)
     return Settling(settled, period, turns, onset, at_rest, deferred & ~settled)
@@ -399,14 +397,22 @@ def identify_attractors(
                     break
                 r = int(remaining[joined < 0][0])
             attractors.append(
-                Attractor(motion_label(False, n, int(turns[r])), n, int(turns[r]), cycles[r, : max(n, 1)].copy(), scales[r].copy())
+                Attractor(
+                    motion_label(False, n, int(turns[r])),
+                    n,
+                    int(turns[r]),
+                    cycles[r, : max(n, 1)].copy(),
+                    scales[r].copy(),
+                )
             )
             assign(len(attractors) - 1)
             labels[r] = len(attractors) - 1  # always matches itself; guards against NaN sections
     return labels, attractors
 
 
-def _join_periodic_rotation(points: np.ndarray, turns: np.ndarray, attractors: list[Attractor], tol: float) -> np.ndarray:
+def _join_periodic_rotation(
+    points: np.ndarray, turns: np.ndarray, attractors: list[Attractor], tol: float
+) -> np.ndarray:
     """For steady rotations (one section point each, ``turns`` per period): the periodic rotating
     attractor with the same rotation number whose cycle passes within ``tol`` of the point, else -1."""
     out = np.full(len(points), -1, dtype=np.int64)

@@ -265,7 +265,9 @@ def settle_runs(
     k = states.shape[0]
     ids = np.arange(k, dtype=np.int64) if ids is None else np.asarray(ids, dtype=np.int64)
     window = settle_options.get("window", SETTLE_WINDOW)
-    history_rows = max(window + settle_options.get("max_period", MAX_PERIOD), settle_options.get("rotation_window", ROTATION_WINDOW))
+    history_rows = max(
+        window + settle_options.get("max_period", MAX_PERIOD), settle_options.get("rotation_window", ROTATION_WINDOW)
+    )
     out = SettledRuns(
         status=np.zeros(k, dtype=np.int64),
         settled=np.zeros(k, dtype=bool),
@@ -425,7 +427,9 @@ def class_fractions(motion: np.ndarray) -> tuple[dict[str, float], dict[str, flo
     return fractions, {k: binomial_stderr(f, n) for k, f in fractions.items()}
 
 
-def summarize(runs: SettledRuns, max_periods: int, match_tol: float | None = None) -> tuple[dict[str, Any], np.ndarray, list[Attractor]]:
+def summarize(
+    runs: SettledRuns, max_periods: int, match_tol: float | None = None
+) -> tuple[dict[str, Any], np.ndarray, list[Attractor]]:
     """The basin summary of one parameter point.
 
     Returns
@@ -618,8 +622,12 @@ class BasinConfig:
         d["thetadot_range"] = None if self.thetadot_range is None else list(self.thetadot_range)
         d["model"] = ModelParams.from_mapping(self.model).to_dict()
         d["backend_options"] = self.make_backend().options()
-        d["settle"] = {"window": SETTLE_WINDOW, "max_period": MAX_PERIOD, "match_tol": MATCH_TOL,
-                       "rotation_window": ROTATION_WINDOW}
+        d["settle"] = {
+            "window": SETTLE_WINDOW,
+            "max_period": MAX_PERIOD,
+            "match_tol": MATCH_TOL,
+            "rotation_window": ROTATION_WINDOW,
+        }
         return d
 
 
@@ -691,7 +699,9 @@ def _basin_task(config: BasinConfig, point: int, starts: np.ndarray, workers: in
     backend = config.make_backend()
     states = np.stack([backend.initial_state(params, 0.0, 0.0, theta0[s], thetadot0[s]) for s in starts])
     system = system_for(config, point, workers)
-    runs = settle_runs(system, states, config.max_periods, ids=starts, round_periods=config.round_periods, tol=config.tol)
+    runs = settle_runs(
+        system, states, config.max_periods, ids=starts, round_periods=config.round_periods, tol=config.tol
+    )
     return [UnitResult(unit_key(point, int(starts[0])), runs_frame(config, point, starts, runs))]
 
 
@@ -769,8 +779,9 @@ def run_basins(
     from .scan import run_scan
 
     scan = BasinScan(config, chunk_starts)
-    return run_scan(scan, output, n_jobs=n_jobs, progress=progress, overwrite=overwrite, executor=executor,
-                    max_work=max_work)
+    return run_scan(
+        scan, output, n_jobs=n_jobs, progress=progress, overwrite=overwrite, executor=executor, max_work=max_work
+    )
 
 
 # -- summaries of finished runs ----------------------------------------------------
@@ -833,7 +844,9 @@ def scan_summary(config: BasinConfig, df: pd.DataFrame) -> tuple[dict[str, Any],
                     best, best_d = g, d
             if best is None:
                 best = len(globals_)
-                globals_.append({"id": best, "motion": a.motion, "period": a.period, "rotation_number": a.rotation_number})
+                globals_.append(
+                    {"id": best, "motion": a.motion, "period": a.period, "rotation_number": a.rotation_number}
+                )
             taken.add(best)
             mapping[a_id] = best
             current.append((best, a))
@@ -859,7 +872,9 @@ def scan_summary(config: BasinConfig, df: pd.DataFrame) -> tuple[dict[str, Any],
         "parameter": config.parameter,
         "values": list(config.values),
         "classes": {c: [p["fractions"].get(c, 0.0) for p in points] for c in classes},
-        "classes_stderr": {c: [binomial_stderr(p["fractions"].get(c, 0.0), p["runs"]) for p in points] for c in classes},
+        "classes_stderr": {
+            c: [binomial_stderr(p["fractions"].get(c, 0.0), p["runs"]) for p in points] for c in classes
+        },
         "unsettled_after_100": [p["unsettled_after_100"] for p in points],
         "unsettled_after_100_stderr": [p["unsettled_after_100_stderr"] for p in points],
         "irregular_after_100": [p["irregular_after_100"] for p in points],

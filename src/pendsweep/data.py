@@ -108,8 +108,7 @@ def validate(data: pd.DataFrame, kind: str, name: str = "record") -> None:
     missing = [c for c in REQUIRED[kind] if c not in data.columns]
     if missing:
         raise ConfigError(
-            f"{name}: missing column(s) {', '.join(missing)} for kind {kind!r}; "
-            f"required: {', '.join(REQUIRED[kind])}"
+            f"{name}: missing column(s) {', '.join(missing)} for kind {kind!r}; required: {', '.join(REQUIRED[kind])}"
         )
     if len(data) < 3:
         raise ConfigError(f"{name}: {len(data)} samples; a record needs at least 3")
@@ -131,9 +130,7 @@ def validate(data: pd.DataFrame, kind: str, name: str = "record") -> None:
     step = np.diff(t)
     if (step <= 0).any():
         i = int(np.argmax(step <= 0))
-        raise ConfigError(
-            f"{name}: time is not strictly increasing at row {i + 1} (t = {t[i]:g} then {t[i + 1]:g} s)"
-        )
+        raise ConfigError(f"{name}: time is not strictly increasing at row {i + 1} (t = {t[i]:g} then {t[i + 1]:g} s)")
     mean = (t[-1] - t[0]) / (len(t) - 1)
     worst = float(np.max(np.abs(step - mean)))
     if worst > UNIFORM_RTOL * mean:
@@ -213,7 +210,9 @@ def read_record(path: str | Path) -> Record:
         try:
             path.read_bytes().decode("utf-8")
         except UnicodeDecodeError as exc:
-            raise ConfigError(f"{name!r} is not a text (UTF-8) file: byte {exc.start} is {exc.object[exc.start]:#04x}") from None
+            raise ConfigError(
+                f"{name!r} is not a text (UTF-8) file: byte {exc.start} is {exc.object[exc.start]:#04x}"
+            ) from None
         with open(path) as fh:
             first = fh.readline()
         if first.startswith("trigger_start_deg"):

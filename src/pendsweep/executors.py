@@ -23,7 +23,8 @@ from __future__ import annotations
 import os
 import queue
 import threading
-from typing import Any, Callable, Iterable, Iterator, Protocol
+from collections.abc import Callable, Iterable, Iterator
+from typing import Any, Protocol
 
 from .errors import ConfigError
 
@@ -113,9 +114,7 @@ class DaskExecutor:
         try:
             from distributed import Client
         except ImportError:
-            raise ConfigError(
-                "--executor dask needs dask.distributed: pip install 'pendsweep[cluster]'"
-            ) from None
+            raise ConfigError("--executor dask needs dask.distributed: pip install 'pendsweep[cluster]'") from None
         if isinstance(scheduler, Client):
             self.client, self._owned = scheduler, False
             return

@@ -35,7 +35,7 @@ DEVICES = ("cpu", "cuda")
 _LAUNCH = threading.Lock()
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def cuda_unavailable_reason() -> str | None:
     """Why no CUDA GPU can be used here (one line), or None when one can."""
     try:
@@ -174,9 +174,7 @@ def run_batch_cuda(
             records[lo:hi] = d_out.copy_to_host()
             status[lo:hi] = d_status.copy_to_host()
             done[lo:hi] = d_done.copy_to_host()
-    out = BatchRun(
-        np.empty_like(records), np.empty((n, 4)), np.empty_like(status), np.empty_like(done)
-    )
+    out = BatchRun(np.empty_like(records), np.empty((n, 4)), np.empty_like(status), np.empty_like(done))
     out.records[order] = records
     out.states[order] = z
     out.status[order] = status

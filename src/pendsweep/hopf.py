@@ -54,9 +54,10 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -85,8 +86,20 @@ LINEAR_LIMIT = 0.1
 KEY_COLUMNS = ["mass_point", "point", "method"]
 #: Columns of a Hopf scan result, in order.
 COLUMNS = [
-    "omega_hat", "fe", "M", "method", "alpha_H", "status", "multiplier",
-    "growth_below", "growth_above", "bracket_lo", "bracket_hi", "kick", "runs", "backend",
+    "omega_hat",
+    "fe",
+    "M",
+    "method",
+    "alpha_H",
+    "status",
+    "multiplier",
+    "growth_below",
+    "growth_above",
+    "bracket_lo",
+    "bracket_hi",
+    "kick",
+    "runs",
+    "backend",
 ]
 
 
@@ -198,7 +211,9 @@ def kicked_records_many(
     return records, status
 
 
-def kicked_records(backend, params: ModelParams, kick: float, settle_periods: int, periods: int) -> tuple[np.ndarray, Status]:
+def kicked_records(
+    backend, params: ModelParams, kick: float, settle_periods: int, periods: int
+) -> tuple[np.ndarray, Status]:
     """:func:`kicked_records_many` for one point: records ``(periods, 8)`` and status."""
     records, status = kicked_records_many(backend, [params], kick, settle_periods, periods)
     return records[0], status[0]
@@ -248,7 +263,13 @@ def hopf_simulate(
     ``runs`` and ``status``.
     """
     return hopf_simulate_many(
-        [params], backend, kick=kick, periods=periods, settle_periods=settle_periods, tol=tol, alpha_max=alpha_max,
+        [params],
+        backend,
+        kick=kick,
+        periods=periods,
+        settle_periods=settle_periods,
+        tol=tol,
+        alpha_max=alpha_max,
         rest_threshold=rest_threshold,
     )[0]
 
@@ -442,7 +463,9 @@ def hopf_point(config: HopfConfig, mass_point: int, point: int, method: str, bac
     if method == "analytic":
         return _result_row(config, mass_point, point, method, dict(alpha_H=alpha_hopf_analytic(params)))
     if method == "floquet":
-        return _result_row(config, mass_point, point, method, hopf_floquet(params, config.floquet_steps, config.alpha_max))
+        return _result_row(
+            config, mass_point, point, method, hopf_floquet(params, config.floquet_steps, config.alpha_max)
+        )
     return hopf_simulate_rows(config, [(mass_point, point)], backend)[0]
 
 
@@ -450,8 +473,13 @@ def hopf_simulate_rows(config: HopfConfig, points: list[tuple[int, int]], backen
     """The ``simulate`` rows of ``(mass_point, point)`` pairs, bisected in lockstep (:func:`hopf_simulate_many`)."""
     backend = backend or make_backend(config.backend, **config.backend_options)
     results = hopf_simulate_many(
-        [config.params_at(i, j) for j, i in points], backend, kick=config.kick, periods=config.periods,
-        settle_periods=config.settle_periods, tol=config.tol, alpha_max=config.alpha_max,
+        [config.params_at(i, j) for j, i in points],
+        backend,
+        kick=config.kick,
+        periods=config.periods,
+        settle_periods=config.settle_periods,
+        tol=config.tol,
+        alpha_max=config.alpha_max,
         rest_threshold=config.rest_threshold,
     )
     return [
@@ -463,9 +491,20 @@ def hopf_simulate_rows(config: HopfConfig, points: list[tuple[int, int]], backen
 def _result_row(config: HopfConfig, mass_point: int, point: int, method: str, result: dict[str, Any]) -> pd.DataFrame:
     params = config.params_at(point, mass_point)
     row: dict[str, Any] = dict(
-        omega_hat=config.omega_hat[point], fe=params.fe, M=params.M, method=method,
-        alpha_H=math.nan, status="ok", multiplier=math.nan, growth_below=math.nan, growth_above=math.nan,
-        bracket_lo=math.nan, bracket_hi=math.nan, kick=math.nan, runs=1, backend="",
+        omega_hat=config.omega_hat[point],
+        fe=params.fe,
+        M=params.M,
+        method=method,
+        alpha_H=math.nan,
+        status="ok",
+        multiplier=math.nan,
+        growth_below=math.nan,
+        growth_above=math.nan,
+        bracket_lo=math.nan,
+        bracket_hi=math.nan,
+        kick=math.nan,
+        runs=1,
+        backend="",
     )
     row.update(result)
     df = pd.DataFrame([row], columns=COLUMNS)
@@ -522,8 +561,11 @@ class HopfScan:
         config = self.config
         n_points = len(config.omega_hat) * len(config.masses)
         runs = math.ceil(math.log2(config.alpha_max / config.tol)) + 2
-        sample = [config.params_at(i, j) for i in sample_indices(len(config.omega_hat))
-                  for j in sample_indices(len(config.masses), 11)]
+        sample = [
+            config.params_at(i, j)
+            for i in sample_indices(len(config.omega_hat))
+            for j in sample_indices(len(config.masses), 11)
+        ]
         steps = float(np.mean([self.backend.steps_per_period(q) for q in sample]))
         simulate = n_points * runs if "simulate" in config.methods else 0
         floquet = n_points * FLOQUET_EVALUATIONS * config.floquet_steps if "floquet" in config.methods else 0
@@ -579,7 +621,12 @@ def run_hopf(
     rows sorted by mass, omega_hat and method order.
     """
     return run_scan(
-        HopfScan(config), output, n_jobs=n_jobs, progress=progress, overwrite=overwrite, executor=executor,
+        HopfScan(config),
+        output,
+        n_jobs=n_jobs,
+        progress=progress,
+        overwrite=overwrite,
+        executor=executor,
         max_work=max_work,
     )
 

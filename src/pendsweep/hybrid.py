@@ -56,5 +56,7 @@ def read_trace(path: Path) -> tuple[pd.DataFrame, dict[str, Any]]:
     """Read a trace written by :func:`write_trace`."""
     df, meta = read_results(path)
     if meta.get("kind") != "trace":
-        raise ResultsError(f"{str(path)!r} is a {meta.get('kind', 'unknown')!r} file, not a trace from `pendsweep trace`")
+        raise ResultsError(
+            f"{str(path)!r} is a {meta.get('kind', 'unknown')!r} file, not a trace from `pendsweep trace`"
+        )
     return df, meta

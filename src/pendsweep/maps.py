@@ -22,9 +22,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from .gpu import check_device
 from .basins import CHUNK_STARTS, ROUND_PERIODS, EmulatedMap, settle_runs
 from .errors import ConfigError
+from .gpu import check_device
 from .params import PARAM_SPECS, ModelParams, check_value
 from .status import Status
 
@@ -141,7 +141,9 @@ def _map_task(config: MapConfig, cells: np.ndarray) -> list:
     states[:, 2:] = config.initial
     runs = settle_runs(
         EmulatedMap(params, config.dt, config.signum, device=config.device, precision=config.precision),
-        states, config.max_periods, round_periods=config.round_periods,
+        states,
+        config.max_periods,
+        round_periods=config.round_periods,
     )
     df = pd.DataFrame(
         {
@@ -186,8 +188,11 @@ class MapScan:
         from .backends import steps_per_period
         from .scan import Work
 
-        fe = [self.config.params_at(x, y).fe for x in (self.config.x_values[0], self.config.x_values[-1])
-              for y in (self.config.y_values[0], self.config.y_values[-1])]
+        fe = [
+            self.config.params_at(x, y).fe
+            for x in (self.config.x_values[0], self.config.x_values[-1])
+            for y in (self.config.y_values[0], self.config.y_values[-1])
+        ]
         steps = float(np.mean([steps_per_period(f, self.config.dt) for f in fe]))
         return Work(self.config.cells, self.config.max_periods, steps)
 
@@ -218,8 +223,14 @@ def run_map(
     """
     from .scan import run_scan
 
-    return run_scan(MapScan(config, chunk_cells), output, progress=progress, overwrite=overwrite, executor=executor,
-                    max_work=max_work)
+    return run_scan(
+        MapScan(config, chunk_cells),
+        output,
+        progress=progress,
+        overwrite=overwrite,
+        executor=executor,
+        max_work=max_work,
+    )
 
 
 def hopf_boundaries(config: MapConfig) -> pd.DataFrame | None:

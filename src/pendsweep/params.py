@@ -15,8 +15,9 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Mapping
+from typing import TYPE_CHECKING, Any
 
 from .errors import ParameterError
 
@@ -108,9 +109,7 @@ PARAM_SPECS: dict[str, ParamSpec] = {
 def check_value(name: str, value: float) -> float:
     """Return ``value`` as float, or raise :class:`ParameterError` naming the range."""
     if name not in PARAM_SPECS:
-        raise ParameterError(
-            f"unknown parameter {name!r}; known parameters: {', '.join(PARAM_SPECS)}"
-        )
+        raise ParameterError(f"unknown parameter {name!r}; known parameters: {', '.join(PARAM_SPECS)}")
     spec = PARAM_SPECS[name]
     try:
         v = float(value)
@@ -118,8 +117,7 @@ def check_value(name: str, value: float) -> float:
         raise ParameterError(f"{name} = {value!r} is not a number") from None
     if not spec.accepts(v):
         raise ParameterError(
-            f"{name} = {v!r} {spec.unit} is outside the accepted range "
-            f"{spec.describe_range()} ({spec.doc})"
+            f"{name} = {v!r} {spec.unit} is outside the accepted range {spec.describe_range()} ({spec.doc})"
         )
     return v
 
@@ -188,7 +186,7 @@ class ModelParams:
         return self.omega_e / (2.0 * self.omega_p)
 
     # -- construction -------------------------------------------------------
-    def replace(self, **changes: float) -> "ModelParams":
+    def replace(self, **changes: float) -> ModelParams:
         """Return a copy with ``changes`` applied; ``M1``/``C1`` set ``M``/``C``.
 
         Raises :class:`ParameterError` for unknown names or values out of range.
@@ -205,7 +203,7 @@ class ModelParams:
         return dataclasses.replace(self, **direct)
 
     @classmethod
-    def from_mapping(cls, mapping: Mapping[str, Any]) -> "ModelParams":
+    def from_mapping(cls, mapping: Mapping[str, Any]) -> ModelParams:
         """Defaults updated by ``mapping`` (unknown keys raise ParameterError)."""
         return cls().replace(**dict(mapping))
 
@@ -295,9 +293,7 @@ class LoopParams:
             ok = math.isfinite(v) and (v >= 0.0 if zero_ok else v > 0.0)
             if not ok:
                 bound = "[0, inf)" if zero_ok else "(0, inf)"
-                raise ParameterError(
-                    f"{name} = {v!r} {unit} is outside the accepted range {bound} ({doc})"
-                )
+                raise ParameterError(f"{name} = {v!r} {unit} is outside the accepted range {bound} ({doc})")
             object.__setattr__(self, name, v)
 
     @property
@@ -306,14 +302,12 @@ class LoopParams:
         return self.ms / self.M1
 
     @classmethod
-    def from_model(cls, params: ModelParams) -> "LoopParams":
+    def from_model(cls, params: ModelParams) -> LoopParams:
         """The loop of a rig: ``M1 = M - M2``, ``C1 = C - C2``, ``m_s = M2 + m``."""
         return cls(M1=params.M1, C1=params.C1, K=params.K, ms=params.M2 + params.m, C2=params.C2)
 
     @classmethod
-    def from_natural(
-        cls, omega_n: float, zeta: float, p: float, c2_over_c1: float, M1: float = 1.0
-    ) -> "LoopParams":
+    def from_natural(cls, omega_n: float, zeta: float, p: float, c2_over_c1: float, M1: float = 1.0) -> LoopParams:
         """Loop from the numerical model's ``omega_n`` [rad/s] and ``zeta`` [-] (Fig. 6)."""
         C1 = 2.0 * zeta * omega_n * M1
         return cls(M1=M1, C1=C1, K=omega_n**2 * M1, ms=p * M1, C2=c2_over_c1 * C1)

@@ -24,8 +24,9 @@ import shutil
 import socket
 import tempfile
 import time
+from collections.abc import Callable, Iterable
 from pathlib import Path
-from typing import Any, Callable, Iterable
+from typing import Any
 
 import pandas as pd
 import pyarrow as pa
@@ -42,6 +43,7 @@ _log = logging.getLogger("pendsweep")
 
 class OutputLocked(ResultsError):
     """Another process is writing the same output (the message names it; exit status 2)."""
+
 
 # Read once at import: os.umask can only be read by setting it, which is not thread-safe.
 _UMASK = os.umask(0o022)
@@ -312,7 +314,9 @@ class ResultStore:
             try:
                 stored = json.loads(config_file.read_text())
             except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-                _log.warning(f"{str(config_file)!r} is unreadable ({exc}); rewriting it (every part is checked on its own)")
+                _log.warning(
+                    f"{str(config_file)!r} is unreadable ({exc}); rewriting it (every part is checked on its own)"
+                )
             else:
                 self._check_hash(stored.get("config_hash") if isinstance(stored, dict) else None, config_file)
         self.parts.mkdir(exist_ok=True)
@@ -401,7 +405,7 @@ class ResultStore:
         """Release the lock (idempotent). Unflushed units are dropped; parts stay for a later resume."""
         self.lock.release()
 
-    def __enter__(self) -> "ResultStore":
+    def __enter__(self) -> ResultStore:
         return self
 
     def __exit__(self, *exc: Any) -> None:

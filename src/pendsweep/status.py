@@ -7,7 +7,7 @@ from enum import Enum
 from .kernels import STATUS_DIVERGED, STATUS_OK, STATUS_UNSTABLE
 
 
-class Status(str, Enum):
+class Status(str, Enum):  # noqa: UP042 - str() must stay the enum name, as in existing messages
     """Outcome of one simulated point; stored by value in result files."""
 
     OK = "ok"
@@ -19,7 +19,7 @@ class Status(str, Enum):
         return _MESSAGES[self]
 
     @classmethod
-    def from_code(cls, code: int) -> "Status":
+    def from_code(cls, code: int) -> Status:
         return _FROM_CODE[int(code)]
 
 

@@ -30,9 +30,10 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -153,9 +154,7 @@ class SweepConfig:
 
     def __post_init__(self) -> None:
         if self.parameter not in PARAM_SPECS:
-            raise ConfigError(
-                f"unknown parameter {self.parameter!r}; steppable parameters: {', '.join(PARAM_SPECS)}"
-            )
+            raise ConfigError(f"unknown parameter {self.parameter!r}; steppable parameters: {', '.join(PARAM_SPECS)}")
         if len(self.values) == 0:
             raise ConfigError("a sweep needs at least one parameter value")
         vals = tuple(sorted(check_value(self.parameter, v) for v in self.values))
@@ -226,7 +225,7 @@ class SweepConfig:
         return d
 
     @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> "SweepConfig":
+    def from_dict(cls, d: dict[str, Any]) -> SweepConfig:
         known = {f.name for f in dataclasses.fields(cls)}
         unknown = sorted(set(d) - known)
         if unknown:
@@ -312,7 +311,9 @@ def run_units(config: SweepConfig, backend, params: list, states: np.ndarray, th
     n = len(params)
     if config.transient == "fixed":
         if one_by_one:
-            runs = [backend.run_point(q, x, config.transient_periods, config.record_periods) for q, x in zip(params, states)]
+            runs = [
+                backend.run_point(q, x, config.transient_periods, config.record_periods) for q, x in zip(params, states)
+            ]
         else:
             runs = backend.run_points(params, states, config.transient_periods, config.record_periods, threads)
         return runs, np.zeros(n, dtype=bool), np.full(n, config.transient_periods)
@@ -360,7 +361,9 @@ def _continue_branch(config, backend, direction, indices, resume) -> Iterator[Un
             kicked = True
         (run,), settled, used = run_units(config, backend, [params], np.array([state]), one_by_one=True)
         motion = _classified(config, backend, params, run)
-        yield _unit(config, PointResult(direction, i, 0, config.values[i], run, kicked, motion, bool(settled[0]), int(used[0])))
+        yield _unit(
+            config, PointResult(direction, i, 0, config.values[i], run, kicked, motion, bool(settled[0]), int(used[0]))
+        )
         ok = run.status is Status.OK
         state = run.state if ok else None
         kick_next = ok and at_rest(run.records[:, REC_THETA_ABSMAX], config.rest_threshold)
@@ -501,8 +504,13 @@ def run_sweep(
         documented in the README.
     """
     return run_scan(
-        SweepScan(config, task_points), output, n_jobs=n_jobs, progress=progress, overwrite=overwrite,
-        executor=executor, max_work=max_work,
+        SweepScan(config, task_points),
+        output,
+        n_jobs=n_jobs,
+        progress=progress,
+        overwrite=overwrite,
+        executor=executor,
+        max_work=max_work,
     )
 
 

@@ -39,8 +39,9 @@ entries are ``(y, ydot, theta, thetadot)``, the per-point fallback of
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, ClassVar, Protocol, Sequence, runtime_checkable
+from typing import Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 import pandas as pd
@@ -103,9 +104,7 @@ class Backend(Protocol):
         threads: int | None = None,
     ) -> list[PointRun]: ...
 
-    def trace(
-        self, params: ModelParams, state: np.ndarray, periods: int, stride: int = 1
-    ) -> pd.DataFrame: ...
+    def trace(self, params: ModelParams, state: np.ndarray, periods: int, stride: int = 1) -> pd.DataFrame: ...
 
     def options(self) -> dict[str, Any]: ...
 
@@ -175,8 +174,7 @@ def make_backend(name: str, **options: Any) -> Backend:
     unknown = sorted(set(options) - set(known))
     if unknown:
         raise ConfigError(
-            f"unknown option(s) {', '.join(unknown)} for backend {name!r}; "
-            f"known: {', '.join(known) or 'none'}"
+            f"unknown option(s) {', '.join(unknown)} for backend {name!r}; known: {', '.join(known) or 'none'}"
         )
     converted = {}
     for key, value in options.items():

@@ -12,8 +12,9 @@ chunks, and runs the chunks on all numba threads.
 from __future__ import annotations
 
 import threading
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import NamedTuple, Sequence
+from typing import NamedTuple
 
 import numba as nb
 import numpy as np
@@ -130,7 +131,11 @@ def run_batch(
     n = len(params)
     if signum not in ("step", "stage"):
         raise ConfigError(f"signum = {signum!r}; choose 'step' or 'stage'")
-    for name, v, lo in (("transient_periods", transient_periods, 0), ("record_periods", record_periods, 1), ("chunk", chunk, 1)):
+    for name, v, lo in (
+        ("transient_periods", transient_periods, 0),
+        ("record_periods", record_periods, 1),
+        ("chunk", chunk, 1),
+    ):
         if int(v) != v or v < lo:
             raise ConfigError(f"{name} = {v!r} must be an integer >= {lo}")
     check_device(device, precision)
@@ -145,7 +150,9 @@ def run_batch(
         transient=np.full(n, int(transient_periods), dtype=np.int64),
         total=np.full(n, int(transient_periods) + int(record_periods), dtype=np.int64),
     )
-    run, _ = run_lanes(params, states, schedule, int(record_periods), dt=dt, signum=signum, chunk=chunk, threads=threads)
+    run, _ = run_lanes(
+        params, states, schedule, int(record_periods), dt=dt, signum=signum, chunk=chunk, threads=threads
+    )
     return run
 
 
@@ -234,9 +241,7 @@ def run_lanes(
         # chunks one at a time instead of a fixed share each.
         previous_chunksize = nb.set_parallel_chunksize(1)
         try:
-            batched_periods(
-                soa, p, alpha, fe, sorted_steps, lanes, signum == "stage", bounds, out, st, dn, out_stretch
-            )
+            batched_periods(soa, p, alpha, fe, sorted_steps, lanes, signum == "stage", bounds, out, st, dn, out_stretch)
         finally:
             nb.set_num_threads(previous)
             nb.set_parallel_chunksize(previous_chunksize)

@@ -59,9 +59,7 @@ class EmulatedBackend(BackendBase):
 
     def validate(self, params: ModelParams) -> None:
         if 1.0 / params.fe < self.dt:
-            raise ConfigError(
-                f"forcing period 1/fe = {1 / params.fe:g} s is shorter than dt = {self.dt:g} s"
-            )
+            raise ConfigError(f"forcing period 1/fe = {1 / params.fe:g} s is shorter than dt = {self.dt:g} s")
 
     @property
     def min_batch_points(self) -> int:
@@ -96,8 +94,15 @@ class EmulatedBackend(BackendBase):
         ``threads`` limits the numba threads (default: all).
         """
         batch = run_batch(
-            params, states, transient_periods, record_periods, dt=self.dt, signum=self.signum, threads=threads,
-            device=self.device, precision=self.precision,
+            params,
+            states,
+            transient_periods,
+            record_periods,
+            dt=self.dt,
+            signum=self.signum,
+            threads=threads,
+            device=self.device,
+            precision=self.precision,
         )
         return [
             PointRun(batch.records[i], batch.states[i], Status.from_code(batch.status[i]), int(batch.periods_done[i]))

@@ -45,6 +45,7 @@ from typing import ClassVar
 
 import numpy as np
 import pandas as pd
+
 from ..errors import ConfigError
 from ..kernels import N_RECORD_COLUMNS
 from ..kernels._actuator import ACT_HERMITE, ACT_SERVO

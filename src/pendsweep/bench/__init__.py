@@ -11,8 +11,9 @@ from __future__ import annotations
 import json
 import platform
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 BenchFn = Callable[[bool], dict[str, Any]]
 BENCHMARKS: dict[str, BenchFn] = {}
@@ -47,7 +48,11 @@ def run_benchmarks(names: list[str] | None, output: Path, quick: bool = False) -
     if unknown:
         raise ConfigError(f"unknown benchmark(s) {', '.join(unknown)}; choose from {', '.join(BENCHMARKS)}")
     report: dict[str, Any] = json.loads(output.read_text()) if output.exists() else {}
-    report["machine"] = {"platform": platform.platform(), "processor": platform.processor(), "python": platform.python_version()}
+    report["machine"] = {
+        "platform": platform.platform(),
+        "processor": platform.processor(),
+        "python": platform.python_version(),
+    }
     for name in names:
         report[name] = BENCHMARKS[name](quick)
         report[name]["measured"] = time.strftime("%Y-%m-%dT%H:%M:%S%z")
@@ -56,13 +61,15 @@ def run_benchmarks(names: list[str] | None, output: Path, quick: bool = False) -
     return report
 
 
-from . import core  # noqa: E402,F401  (registers benchmarks)
-from . import hopf  # noqa: E402,F401  (Hopf-boundary scans)
-from . import substructured  # noqa: E402,F401  (registers benchmarks)
-from . import measured  # noqa: E402,F401  (registers benchmarks)
-from . import throughput  # noqa: E402,F401  (batched kernel against its peers)
-from . import command  # noqa: E402,F401  (whole commands against a plain script)
-from . import gpu  # noqa: E402,F401  (the CUDA kernel; skipped without a GPU)
-from . import continuation  # noqa: E402,F401  (continuation against finite differences and sweeps)
-from . import diagnosis  # noqa: E402,F401  (diagnosis on independent records)
-from . import basins  # noqa: E402,F401  (basin map with early stop, issue 14)
+from . import (  # noqa: E402  (registers the benchmarks; needs the registry above)
+    basins,  # noqa: E402,F401  (basin map with early stop, issue 14)
+    command,  # noqa: E402,F401  (whole commands against a plain script)
+    continuation,  # noqa: E402,F401  (continuation against finite differences and sweeps)
+    core,  # noqa: E402,F401  (registers benchmarks)
+    diagnosis,  # noqa: E402,F401  (diagnosis on independent records)
+    gpu,  # noqa: E402,F401  (the CUDA kernel; skipped without a GPU)
+    hopf,  # noqa: E402,F401  (Hopf-boundary scans)
+    measured,  # noqa: E402,F401  (registers benchmarks)
+    substructured,  # noqa: E402,F401  (registers benchmarks)
+    throughput,  # noqa: E402,F401  (batched kernel against its peers)
+)

@@ -7,8 +7,8 @@ import time
 
 import numpy as np
 
-from ..basins import BasinConfig, run_basins
 from ..backends._batch import run_batch
+from ..basins import BasinConfig, run_basins
 from . import benchmark
 
 

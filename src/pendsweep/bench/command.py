@@ -40,12 +40,29 @@ def bench_command(quick: bool) -> dict:
     try:
         out = {
             "help_seconds": wall_time([*pendsweep, "--help"], work),
-            "canonical_seconds": wall_time([*pendsweep, "alpha", "--from", "0", "--to", "45", "-o", "c.parquet", "--overwrite"], work),
+            "canonical_seconds": wall_time(
+                [*pendsweep, "alpha", "--from", "0", "--to", "45", "-o", "c.parquet", "--overwrite"], work
+            ),
             "canonical_naive_script_seconds": wall_time([*naive, "continue", "0", "45", "0.5"], work),
             "dense_fresh_points": 901 if not quick else 91,
             "dense_fresh_seconds": wall_time(
-                [*pendsweep, "alpha", "--from", "0", "--to", "45", "--step", dense_step, "--mode", "fresh",
-                 "-o", "d.parquet", "--overwrite"], work),  # fmt: skip
+                [
+                    *pendsweep,
+                    "alpha",
+                    "--from",
+                    "0",
+                    "--to",
+                    "45",
+                    "--step",
+                    dense_step,
+                    "--mode",
+                    "fresh",
+                    "-o",
+                    "d.parquet",
+                    "--overwrite",
+                ],
+                work,
+            ),  # fmt: skip
             "dense_fresh_naive_script_seconds": wall_time([*naive, "fresh", "0", "45", dense_step], work),
         }
     finally:

@@ -17,7 +17,6 @@ from ..sweepfile import SWEEPS_DIR, load_sweep
 from . import benchmark, best_of
 
 
-
 class _Stalled(Exception):
     """solve_ivp exceeded its wall-time budget."""
 

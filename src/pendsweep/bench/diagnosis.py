@@ -41,12 +41,25 @@ def evaluate(seed: int) -> dict:
     seconds = time.perf_counter() - t0
     js = d.to_json()
     row = {
-        "seed": seed, "category": category, "kind": case.kind, "rate": case.rate, "at_rest": case.theta_init == 0.0,
-        "tones": len(case.tones), "truth": case.label, "extra": ",".join(case.extra), "verdict": js["cause"],
-        "unexplained": js["unexplained"], "explained_share": js["explained_share"], "seconds": seconds,
-        "error_before": js["error_before"], "error_after": js["error_after"], "noise_floor": js["noise_floor"],
+        "seed": seed,
+        "category": category,
+        "kind": case.kind,
+        "rate": case.rate,
+        "at_rest": case.theta_init == 0.0,
+        "tones": len(case.tones),
+        "truth": case.label,
+        "extra": ",".join(case.extra),
+        "verdict": js["cause"],
+        "unexplained": js["unexplained"],
+        "explained_share": js["explained_share"],
+        "seconds": seconds,
+        "error_before": js["error_before"],
+        "error_after": js["error_after"],
+        "noise_floor": js["noise_floor"],
         "estimate_rel_error": {},
-        "first_round": {k: d.tests["first_round"][k] for k in ("model", "explained_share", "p_value", "z")} if "first_round" in d.tests else {},
+        "first_round": {k: d.tests["first_round"][k] for k in ("model", "explained_share", "p_value", "z")}
+        if "first_round" in d.tests
+        else {},
     }
     for cause, truth in case.effects.items():
         p = EFFECTS[cause].param
@@ -109,8 +122,11 @@ def summarize(rows: list[dict]) -> dict:
         "misses": [
             {k: r[k] for k in ("seed", "category", "kind", "rate", "truth", "extra", "verdict", "unexplained")}
             for r in rows
-            if (r["category"] in ("single", "clean", "pair") and r["verdict"] != r["truth"]
-                and set(r["verdict"].split("+")) != set(r["truth"].split("+")))
+            if (
+                r["category"] in ("single", "clean", "pair")
+                and r["verdict"] != r["truth"]
+                and set(r["verdict"].split("+")) != set(r["truth"].split("+"))
+            )
             or (r["category"] == "oov" and not r["unexplained"])
         ],
     }
@@ -146,7 +162,9 @@ def plot(summary: dict, path: Path) -> Path:
     ax.set_ylabel("hidden effect")
     ax.set_title(
         f"single recall {summary['single_recall']:.2f}, clean FP {summary['clean_false_positive_rate']:.2f}, "
-        f"OOV flagged {summary['oov_flagged']:.2f}, pairs {summary['pairs_right']:.2f}", fontsize=8)
+        f"OOV flagged {summary['oov_flagged']:.2f}, pairs {summary['pairs_right']:.2f}",
+        fontsize=8,
+    )
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
@@ -163,7 +181,9 @@ def bench_diagnosis(quick: bool) -> dict:
     rows = run_population(TEST_SEEDS[:n])
     summary = summarize(rows)
     summary["wall_seconds"] = time.perf_counter() - t0
-    summary["seed_range"] = f"TEST_SEEDS (range B) {TEST_SEEDS[0]}..{TEST_SEEDS[0] + n - 1}; thresholds chosen on CALIBRATION_SEEDS (range A)"
+    summary["seed_range"] = (
+        f"TEST_SEEDS (range B) {TEST_SEEDS[0]}..{TEST_SEEDS[0] + n - 1}; thresholds chosen on CALIBRATION_SEEDS (range A)"
+    )
     summary["figure"] = str(plot(summary, FIGURE))
     return summary
 

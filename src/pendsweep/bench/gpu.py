@@ -38,8 +38,13 @@ def throughput(n_side: int, periods: int, precision: str) -> dict:
     run_batch(params[:32], states[:32], 0, 1, device="cuda", precision=precision)  # compile
     wall = best_of(lambda: run_batch(params, states, 0, periods, device="cuda", precision=precision), 3)
     point_steps = len(params) * periods * STEPS
-    return {"points": len(params), "periods": periods, "seconds": wall, "point_steps_per_s": point_steps / wall,
-            "ps_per_point_step": 1e12 * wall / point_steps}
+    return {
+        "points": len(params),
+        "periods": periods,
+        "seconds": wall,
+        "point_steps_per_s": point_steps / wall,
+        "ps_per_point_step": 1e12 * wall / point_steps,
+    }
 
 
 def cpu_throughput(n_side: int, periods: int) -> dict:
@@ -48,8 +53,12 @@ def cpu_throughput(n_side: int, periods: int) -> dict:
     states = np.tile([0.0, 0.0, 0.1, 0.0], (len(params), 1))
     run_batch(params[:32], states[:32], 0, 1)
     wall = best_of(lambda: run_batch(params, states, 0, periods), 1)
-    return {"points": len(params), "periods": periods, "seconds": wall,
-            "point_steps_per_s": len(params) * periods * STEPS / wall}
+    return {
+        "points": len(params),
+        "periods": periods,
+        "seconds": wall,
+        "point_steps_per_s": len(params) * periods * STEPS / wall,
+    }
 
 
 def jax_gpu(n_side: int, periods: int) -> dict:
@@ -66,8 +75,14 @@ def jax_gpu(n_side: int, periods: int) -> dict:
     n_steps = periods * STEPS
     run(params, states, n_steps, 1.0 / (2.5 * STEPS))  # compile
     wall = best_of(lambda: run(params, states, n_steps, 1.0 / (2.5 * STEPS)), 3)
-    return {"jax": jax.__version__, "device": str(jax.devices()[0]), "points": len(params), "periods": periods,
-            "seconds": wall, "point_steps_per_s": len(params) * n_steps / wall}
+    return {
+        "jax": jax.__version__,
+        "device": str(jax.devices()[0]),
+        "points": len(params),
+        "periods": periods,
+        "seconds": wall,
+        "point_steps_per_s": len(params) * n_steps / wall,
+    }
 
 
 def hopf_grid(device: str, quick: bool) -> dict:
@@ -77,13 +92,18 @@ def hopf_grid(device: str, quick: bool) -> dict:
 
     omega_hat = tuple(np.linspace(*OMEGA_HAT, 4 if quick else 25))
     masses = FIG10B_MASSES[::3] if quick else FIG10B_MASSES
-    config = HopfConfig(omega_hat=omega_hat, masses=masses, methods=("simulate",), kick=BIG_KICK,
-                        backend_options={"device": device})
+    config = HopfConfig(
+        omega_hat=omega_hat, masses=masses, methods=("simulate",), kick=BIG_KICK, backend_options={"device": device}
+    )
     run_hopf(HopfConfig(omega_hat=omega_hat[:1], methods=("simulate",), backend_options={"device": device}, periods=2))
     t0 = time.perf_counter()
     rows = run_hopf(config, n_jobs=1)
-    return {"device": device, "rows": len(rows), "seconds": time.perf_counter() - t0,
-            "alpha_H_mean_N": float(rows["alpha_H"].mean())}
+    return {
+        "device": device,
+        "rows": len(rows),
+        "seconds": time.perf_counter() - t0,
+        "alpha_H_mean_N": float(rows["alpha_H"].mean()),
+    }
 
 
 def basin_grid(n_side: int, transient: int, record: int) -> dict:
@@ -95,8 +115,12 @@ def basin_grid(n_side: int, transient: int, record: int) -> dict:
     t0 = time.perf_counter()
     run = run_batch(params, states, transient, record, device="cuda")
     wall = time.perf_counter() - t0
-    return {"grid": f"{n_side} x {n_side}", "periods": transient + record, "seconds": wall,
-            "diverged": int((run.status != 0).sum())}
+    return {
+        "grid": f"{n_side} x {n_side}",
+        "periods": transient + record,
+        "seconds": wall,
+        "diverged": int((run.status != 0).sum()),
+    }
 
 
 @benchmark("gpu")

@@ -13,15 +13,35 @@ def bench_measured(quick: bool) -> dict:
     duration = 6.0 if quick else 60.0
     out: dict = {"record_seconds": duration, "rate_hz": 1000.0, "target_seconds": 30.0}
     cases = {
-        "forced": synthesize("forced", FIG9_PO, {"oscillator_damping": 26.0}, duration, 1000.0, seed=0, theta_init=0.3, transient=20.0, tone2=(2.0, 1.3)),
-        "substructured": synthesize("substructured", FIG9_PO, {"actuator_delay": 0.008}, duration, 1000.0, seed=0, theta_init=0.3, transient=20.0, tone2=(2.0, 1.3)),
+        "forced": synthesize(
+            "forced",
+            FIG9_PO,
+            {"oscillator_damping": 26.0},
+            duration,
+            1000.0,
+            seed=0,
+            theta_init=0.3,
+            transient=20.0,
+            tone2=(2.0, 1.3),
+        ),
+        "substructured": synthesize(
+            "substructured",
+            FIG9_PO,
+            {"actuator_delay": 0.008},
+            duration,
+            1000.0,
+            seed=0,
+            theta_init=0.3,
+            transient=20.0,
+            tone2=(2.0, 1.3),
+        ),
         "free_decay": synthesize("free_decay", TABLE_IV, {"viscous_damping": 1.8e-4}, duration, 1000.0, seed=0),
     }
     for kind, record in cases.items():
         replay = Replay(record)
         diagnose(Replay(synthesize(kind, record.params, {}, 2.0, 100.0, theta_init=0.3, transient=1.0)))  # load kernels
-        t_diag = best_of(lambda: diagnose(replay), 1)
-        t_sim = best_of(lambda: replay.simulate(replay.nominal), 5)
+        t_diag = best_of(lambda replay=replay: diagnose(replay), 1)
+        t_sim = best_of(lambda replay=replay: replay.simulate(replay.nominal), 5)
         d = diagnose(replay)
         out[kind] = {
             "candidates": len(d.candidates),

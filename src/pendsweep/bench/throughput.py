@@ -22,8 +22,9 @@ import os
 import re
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numba as nb
 import numpy as np
@@ -85,7 +86,9 @@ def rk4_step_for(xp):
         fd = b1 * sg + b2 * thd + b3 * thd * thd * sg
         den = M + m * c * c
         common = force - C * yd - K * y - k3 * y**3 - m * l * thd * thd * c + s * fd / l
-        return xp.stack([yd, (common + m * g * s * s) / den, thd, -(s / l) * (common + (M + m) * g) / den - fd / (m * l * l)])
+        return xp.stack(
+            [yd, (common + m * g * s * s) / den, thd, -(s / l) * (common + (M + m) * g) / den - fd / (m * l * l)]
+        )
 
     def step(cols, z, t, dt):
         alpha, w = cols[10], cols[11]
@@ -156,7 +159,9 @@ def best_times(fn: Callable[[], Any], repeat: int = 3) -> tuple[float, float]:
     return min(walls), min(cpus)
 
 
-def _row(name: str, times: tuple[float, float], point_steps: float, threads: int, horizon: float, note: str = "") -> dict:
+def _row(
+    name: str, times: tuple[float, float], point_steps: float, threads: int, horizon: float, note: str = ""
+) -> dict:
     wall, cpu = times
     ns = 1e9 * cpu / point_steps
     return {
@@ -198,7 +203,7 @@ def _scaling(quick: bool) -> dict:
             params = [base[i % len(base)] for i in range(n)]
             periods = max(4, int(budget / (n * 400)))
             states = np.tile([0.0, 0.0, 0.1, 0.0], (n, 1))
-            wall, _ = best_times(lambda: run_batch(params, states, 0, periods, threads=t), 3)
+            wall, _ = best_times(lambda p=params, s=states, k=periods, t=t: run_batch(p, s, 0, k, threads=t), 3)
             rates.append(n * periods * 400 / wall)
         out[f"point_steps_per_s_threads_{t}"] = rates
     return out
@@ -250,8 +255,10 @@ def bench_throughput(quick: bool) -> dict:
     horizon = 4 if quick else 20
     run_batch(params, states, 0, 1)  # compile / load the cache
     for t in sorted({1, threads}):
-        times = best_times(lambda: run_batch(params, states, 0, horizon, threads=t), 5)
-        rows.append(_row(f"pendsweep batched ({t} thread{'s' if t > 1 else ''})", times, n * horizon * steps, t, horizon))
+        times = best_times(lambda t=t: run_batch(params, states, 0, horizon, threads=t), 5)
+        rows.append(
+            _row(f"pendsweep batched ({t} thread{'s' if t > 1 else ''})", times, n * horizon * steps, t, horizon)
+        )
 
     backend = make_backend("emulated")
     backend.run_point(params[0], states[0], 0, 1)
@@ -262,9 +269,11 @@ def bench_throughput(quick: bool) -> dict:
     h_numpy = 1 if quick else 2
     times = best_times(lambda: numpy_rk4(params, states, h_numpy * steps, dt), 1 if quick else 3)
     rows.append(_row("numpy RK4, vectorised across points", times, n * h_numpy * steps, 1, h_numpy))
-    agreement = {"numpy_rk4_vs_batched_final_state_max_abs_diff_after_1_period": float(
-        np.max(np.abs(numpy_rk4(params, states, steps, dt) - run_batch(params, states, 0, 1).states))
-    )}
+    agreement = {
+        "numpy_rk4_vs_batched_final_state_max_abs_diff_after_1_period": float(
+            np.max(np.abs(numpy_rk4(params, states, steps, dt) - run_batch(params, states, 0, 1).states))
+        )
+    }
 
     try:
         jax_run = jax_rk4_factory()
@@ -276,8 +285,16 @@ def bench_throughput(quick: bool) -> dict:
 
         jax_run(params, states, horizon * steps, dt)  # compile
         times = best_times(lambda: jax_run(params, states, horizon * steps, dt), 3)
-        rows.append(_row(f"JAX {jax.__version__} vmap + lax.scan RK4, float64, CPU", times, n * horizon * steps, threads,
-                         horizon, "XLA's own thread pool; CPU time of all its threads"))
+        rows.append(
+            _row(
+                f"JAX {jax.__version__} vmap + lax.scan RK4, float64, CPU",
+                times,
+                n * horizon * steps,
+                threads,
+                horizon,
+                "XLA's own thread pool; CPU time of all its threads",
+            )
+        )
         z = jax_run(params, states, steps, dt)
         z[:, 2] = [wrap_angle(v) for v in z[:, 2]]  # the kernels rewrap theta every period
         agreement["jax_rk4_vs_batched_final_state_max_abs_diff_after_1_period"] = float(
@@ -289,8 +306,16 @@ def bench_throughput(quick: bool) -> dict:
     ivp_points = params[n // 8 :: max(1, n // (2 if quick else 4))]
     h_ivp = 1
     times = best_times(lambda: [solve_ivp_point(p, [0.0, 0.0, 0.1, 0.0], h_ivp) for p in ivp_points], 1)
-    rows.append(_row("scipy solve_ivp RK45 rtol 1e-8, per point", times, len(ivp_points) * h_ivp * steps, 1, h_ivp,
-                     f"{len(ivp_points)} points x {h_ivp} period, charged per 1 ms of simulated time"))
+    rows.append(
+        _row(
+            "scipy solve_ivp RK45 rtol 1e-8, per point",
+            times,
+            len(ivp_points) * h_ivp * steps,
+            1,
+            h_ivp,
+            f"{len(ivp_points)} points x {h_ivp} period, charged per 1 ms of simulated time",
+        )
+    )
 
     best = min(r["ns_per_point_step_per_core"] for r in rows if r["peer"].startswith("pendsweep batched"))
     for r in rows:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import click
 
@@ -14,12 +14,17 @@ def executor_options() -> list[Callable]:
     """click options ``--executor local|dask`` and ``--scheduler ADDRESS``."""
     return [
         click.option(
-            "--executor", type=click.Choice(EXECUTORS), default="local", show_default=True,
+            "--executor",
+            type=click.Choice(EXECUTORS),
+            default="local",
+            show_default=True,
             help="Where points run: local (this machine's cores) or dask (chunks of points on a "
             "dask.distributed cluster; results stream into the same resumable file).",
         ),
         click.option(
-            "--scheduler", default=None, metavar="ADDRESS",
+            "--scheduler",
+            default=None,
+            metavar="ADDRESS",
             help=f"Dask scheduler for --executor dask, e.g. tcp://10.0.0.5:8786 (default: ${SCHEDULER_ENV}).",
         ),
     ]
@@ -29,7 +34,10 @@ def work_options() -> list[Callable]:
     """click options ``--max-work STEPS`` and ``--yes``: the limit on a scan's work estimate."""
     return [
         click.option(
-            "--max-work", type=click.FloatRange(min=0, min_open=True), default=DEFAULT_MAX_WORK, show_default=True,
+            "--max-work",
+            type=click.FloatRange(min=0, min_open=True),
+            default=DEFAULT_MAX_WORK,
+            show_default=True,
             metavar="STEPS",
             help="Refuse scans estimated above this many integration steps (points x periods x steps per period).",
         ),

@@ -352,8 +352,13 @@ class Continuation:
     Use :meth:`run` (start point, both directions, branch switching).
     """
 
-    def __init__(self, problem: MapProblem, bounds: tuple[float, float], settings: Settings | None = None,
-                 progress: Callable[[int], None] | None = None):
+    def __init__(
+        self,
+        problem: MapProblem,
+        bounds: tuple[float, float],
+        settings: Settings | None = None,
+        progress: Callable[[int], None] | None = None,
+    ):
         self.problem = problem
         self.settings = settings or Settings()
         self.bounds = (min(bounds), max(bounds))
@@ -520,7 +525,9 @@ class Continuation:
         merge = self._merge_point(scaled, prev, new, branch, found, ds, lam_turns)
         if merge is not None:
             return [merge], REACHED
-        events = [kind for kind in (FOLD, PERIOD_DOUBLING, NEIMARK_SACKER) if np.sign(f_prev[kind]) != np.sign(f_new[kind])]
+        events = [
+            kind for kind in (FOLD, PERIOD_DOUBLING, NEIMARK_SACKER) if np.sign(f_prev[kind]) != np.sign(f_new[kind])
+        ]
         located: list[tuple[float, Point]] = []
         for kind in events:
             s_point = self.locate(scaled, prev, kind, ds, f_prev[kind], f_new[kind], new)
@@ -532,8 +539,9 @@ class Continuation:
                 return [p for _, p in sorted(located, key=lambda e: e[0])] + [point], REACHED
             if kind == FOLD and not lam_turns:
                 kind = BRANCH_POINT  # det(P' - I) = 0 where the parameter does not turn back: another branch crosses
-            if kind == NEIMARK_SACKER and not self._complex_pair_crosses(prev.multipliers, new.multipliers,
-                                                                          point.multipliers):
+            if kind == NEIMARK_SACKER and not self._complex_pair_crosses(
+                prev.multipliers, new.multipliers, point.multipliers
+            ):
                 continue  # e.g. a neutral saddle (real pair with mu1 mu2 = 1)
             vector = None
             if kind == PERIOD_DOUBLING:
@@ -551,8 +559,9 @@ class Continuation:
             return False
         return bool(np.linalg.norm(scaled.pack(b.x, b.lam) - scaled.pack(point.x, point.lam)) < 1e-6)
 
-    def _merge_point(self, scaled, prev: Point, new: Point, branch: int, found: list[Bifurcation], ds: float,
-                     lam_turns: bool) -> Point | None:
+    def _merge_point(
+        self, scaled, prev: Point, new: Point, branch: int, found: list[Bifurcation], ds: float, lam_turns: bool
+    ) -> Point | None:
         """The period doubling where a doubled branch ends, if it ends between ``prev`` and ``new``.
 
         A doubled branch meets the orbit of half its period at a period
@@ -569,8 +578,11 @@ class Continuation:
             return None
         u_prev, u_new = scaled.pack(prev.x, prev.lam), scaled.pack(new.x, new.lam)
         for index, bif in enumerate(found):
-            if (bif.kind != PERIOD_DOUBLING or index == self._origins.get(branch)
-                    or self._periods[bif.branch] * 2 != scaled.problem.period):
+            if (
+                bif.kind != PERIOD_DOUBLING
+                or index == self._origins.get(branch)
+                or self._periods[bif.branch] * 2 != scaled.problem.period
+            ):
                 continue
             u_pd = scaled.pack(bif.x, bif.lam)
             if max(np.linalg.norm(u_pd - u_prev), np.linalg.norm(u_pd - u_new)) <= 2.0 * ds:
@@ -604,7 +616,10 @@ class Continuation:
         failure inside a bracket narrower than a tenth of the step returns
         the bracket end with the smaller test function.
         """
-        value = lambda pt: test_functions(pt.multipliers)[kind]
+
+        def value(pt):
+            return test_functions(pt.multipliers)[kind]
+
         u_prev = scaled.pack(prev.x, prev.lam)
         lo, hi, f_lo, f_hi = 0.0, ds, f0, f1
         best, s = new, ds
@@ -696,14 +711,22 @@ class Continuation:
             self._origins[len(branches)] = handled - 1
             entered = self.enter_doubled(_Scaled(child, self.settings), bif, parent)
             if entered is None:
-                branches.append(Branch(child.period, [], ["branch switching failed"], f"period doubling at {bif.lam:.6g}"))
+                branches.append(
+                    Branch(child.period, [], ["branch switching failed"], f"period doubling at {bif.lam:.6g}")
+                )
                 problems.append(child)
                 continue
             scaled_child, first, pd_point = entered
             index = len(branches)
             points, end = self.march(scaled_child, first, index, found)
-            branches.append(Branch(child.period, [pd_point, first] + points, ["period doubling", end],
-                                   f"period doubling at {bif.lam:.6g}"))
+            branches.append(
+                Branch(
+                    child.period,
+                    [pd_point, first] + points,
+                    ["period doubling", end],
+                    f"period doubling at {bif.lam:.6g}",
+                )
+            )
             problems.append(child)
         return Result(branches, found, start)
 

@@ -47,8 +47,9 @@ def branch_observables(doc: dict[str, Any], observable: str) -> list[np.ndarray]
     params = ModelParams.from_mapping(cfg["model"])
     out = []
     for branch in doc["branches"]:
-        problem = PendulumShooting(params, cfg["parameter"], branch["period"], cfg["dt"], cfg["eps"],
-                                   steps=cfg["steps_per_period"])
+        problem = PendulumShooting(
+            params, cfg["parameter"], branch["period"], cfg["dt"], cfg["eps"], steps=cfg["steps_per_period"]
+        )
         values = np.full((len(branch["points"]), branch["period"]), np.nan)
         for i, pt in enumerate(branch["points"]):
             records = problem.evaluate(np.array(pt["section"]), pt["value"], tangent=False).info.records
@@ -104,9 +105,14 @@ def draw_continuation(ax: Axes, doc: dict[str, Any], observable: str = "theta_pe
         for first, last, stable in _segment_runs(np.array([p["max_multiplier"] for p in branch["points"]])):
             label = f"period-{branch['period']} orbit, {'stable' if stable else 'unstable'}"
             for j in range(values.shape[1]):
-                ax.plot(*_broken(lam[first : last + 1], values[first : last + 1, j], observable), color=colour,
-                        lw=1.2 if stable else 0.9,
-                        ls="-" if stable else "--", label=None if label in labelled else label, zorder=3)
+                ax.plot(
+                    *_broken(lam[first : last + 1], values[first : last + 1, j], observable),
+                    color=colour,
+                    lw=1.2 if stable else 0.9,
+                    ls="-" if stable else "--",
+                    label=None if label in labelled else label,
+                    zorder=3,
+                )
                 labelled.add(label)
     for bif in doc["bifurcations"]:
         branch = doc["branches"][bif["branch"]]
@@ -116,8 +122,15 @@ def draw_continuation(ax: Axes, doc: dict[str, Any], observable: str = "theta_pe
         label = style.pop("label")
         ys = observed[bif["branch"]][i]
         # Not clipped: a bifurcation on the axes' edge (e.g. at the interval's end) stays whole.
-        ax.scatter(np.full(ys.size, bif["value"]), ys, label=None if label in labelled else label, zorder=4,
-                   linewidths=1.2, clip_on=False, **style)
+        ax.scatter(
+            np.full(ys.size, bif["value"]),
+            ys,
+            label=None if label in labelled else label,
+            zorder=4,
+            linewidths=1.2,
+            clip_on=False,
+            **style,
+        )
         labelled.add(label)
 
 
@@ -157,8 +170,9 @@ def wrapped_title(title: str, width: int) -> str:
     return "\n".join(textwrap.wrap(title, width)) or title
 
 
-def plot_continuation(docs: Sequence[dict[str, Any]], output: Path, observable: str = "theta_peak",
-                      title: str | None = None) -> Path:
+def plot_continuation(
+    docs: Sequence[dict[str, Any]], output: Path, observable: str = "theta_peak", title: str | None = None
+) -> Path:
     """Continuation documents alone (no sweep) into ``output`` (PNG/PDF/SVG)."""
     output = Path(output)
     if output.suffix.lower() not in {".png", ".pdf", ".svg"}:

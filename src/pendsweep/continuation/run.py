@@ -115,7 +115,9 @@ class ContinuationConfig:
         if self.start_section is not None:
             object.__setattr__(self, "start_section", tuple(float(v) for v in self.start_section))
             if len(self.start_section) != 4 or not all(math.isfinite(v) for v in self.start_section):
-                raise ConfigError(f"start section {self.start_section!r} must be 4 finite numbers (y, ydot, theta, thetadot)")
+                raise ConfigError(
+                    f"start section {self.start_section!r} must be 4 finite numbers (y, ydot, theta, thetadot)"
+                )
         checks = (
             ("period", self.period >= 1 and int(self.period) == self.period, "an integer >= 1"),
             ("eps", math.isfinite(self.eps) and self.eps >= 0, "a finite number >= 0 [rad/s]"),
@@ -141,12 +143,18 @@ class ContinuationConfig:
         return ModelParams.from_mapping(self.model).replace(**{self.parameter: self.lam0})
 
     def problem(self) -> PendulumShooting:
-        return PendulumShooting(self.params(), self.parameter, self.period, self.dt, self.eps,
-                                lam_scale=abs(self.stop - self.start))
+        return PendulumShooting(
+            self.params(), self.parameter, self.period, self.dt, self.eps, lam_scale=abs(self.stop - self.start)
+        )
 
     def settings(self) -> Settings:
-        return Settings(ds=self.ds, ds_max=self.ds_max, max_points=self.max_points,
-                        max_period=self.max_period, newton_tol=self.newton_tol)
+        return Settings(
+            ds=self.ds,
+            ds_max=self.ds_max,
+            max_points=self.max_points,
+            max_period=self.max_period,
+            newton_tol=self.newton_tol,
+        )
 
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
@@ -227,7 +235,7 @@ def read_json(path: Path) -> dict[str, Any]:
     except json.JSONDecodeError as exc:
         raise ConfigError(f"{str(path)!r} is not valid JSON: {exc}") from None
     if not isinstance(doc, dict) or doc.get("kind") != "continuation":
-        raise ConfigError(f"{str(path)!r} is not a continuation result (no \"kind\": \"continuation\")")
+        raise ConfigError(f'{str(path)!r} is not a continuation result (no "kind": "continuation")')
     return doc
 
 
@@ -319,18 +327,24 @@ def start_from_file(path: Path, parameter: str, value: float) -> tuple[tuple[flo
     except FileNotFoundError:
         raise ConfigError(f"no start file at {str(path)!r}") from None
     except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"start file {str(path)!r} is not a readable UTF-8 JSON file ({exc.__class__.__name__}); "
-                          "give a sweep result (.parquet) or JSON {\"value\", \"section\", \"period\"}") from None
+        raise ConfigError(
+            f"start file {str(path)!r} is not a readable UTF-8 JSON file ({exc.__class__.__name__}); "
+            'give a sweep result (.parquet) or JSON {"value", "section", "period"}'
+        ) from None
     except json.JSONDecodeError as exc:
         raise ConfigError(f"start file {str(path)!r} is not valid JSON: {exc}") from None
     if not isinstance(data, dict) or "section" not in data or "value" not in data:
-        raise ConfigError(f"start file {str(path)!r} must hold {{\"value\": v, \"section\": [4 numbers], \"period\": k}}")
+        raise ConfigError(f'start file {str(path)!r} must hold {{"value": v, "section": [4 numbers], "period": k}}')
     section = data["section"]
     if not isinstance(section, list) or len(section) != 4:
-        raise ConfigError(f"start file {str(path)!r}: section = {json.dumps(section)} must be a list of 4 numbers "
-                          "[y m, ydot m/s, theta rad, thetadot rad/s]")
+        raise ConfigError(
+            f"start file {str(path)!r}: section = {json.dumps(section)} must be a list of 4 numbers "
+            "[y m, ydot m/s, theta rad, thetadot rad/s]"
+        )
     numbers = tuple(_number(path, f"section[{i}]", v, "a finite number") for i, v in enumerate(section))
-    start_value = _number(path, "value", data["value"], f"a finite number ({parameter} [{PARAM_SPECS[parameter].unit}])")
+    start_value = _number(
+        path, "value", data["value"], f"a finite number ({parameter} [{PARAM_SPECS[parameter].unit}])"
+    )
     period = int(_number(path, "period", data.get("period", 1), "an integer >= 1 [forcing periods]", integer=True))
     return numbers, start_value, period
 

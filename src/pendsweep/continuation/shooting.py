@@ -64,8 +64,16 @@ class PendulumShooting:
         Characteristic size of the parameter [its unit].
     """
 
-    def __init__(self, params: ModelParams, parameter: str, period: int = 1, dt: float = 1e-3,
-                 eps: float = 1e-3, lam_scale: float = 1.0, steps: int | None = None):
+    def __init__(
+        self,
+        params: ModelParams,
+        parameter: str,
+        period: int = 1,
+        dt: float = 1e-3,
+        eps: float = 1e-3,
+        lam_scale: float = 1.0,
+        steps: int | None = None,
+    ):
         self.params = params
         self.parameter = parameter
         self.period = int(period)
@@ -110,7 +118,6 @@ class PendulumShooting:
         d = info.records[self.period // 2 - 1, SECTION] - x
         d[2] = wrap_angle(d[2])
         return float(np.abs(d / self.scale).max())
-
 
     def image_distance(self, info: OrbitInfo, y: np.ndarray) -> float:
         """Scaled 2-norm distance from ``y`` to the nearest section after 1 ... k-1 periods (inf for ``k = 1``)."""

@@ -129,7 +129,9 @@ class _Swing:
         p = kernel_vector(dict(m=1.0, l=L, b1=q["beta1"] * L * L, b2=q["beta2"] * L * L, b3=q["beta3"] * L * L,
                                g=self.g, M=1.0, C=0.0, K=1.0, k3=0.0))  # fmt: skip
         out = np.empty((n or self.n, 2))
-        pendulum_trace(np.array([q["theta_init"] - q["theta_offset"], q["thetadot_init"]]), p, self.dt, self.substeps, out)
+        pendulum_trace(
+            np.array([q["theta_init"] - q["theta_offset"], q["thetadot_init"]]), p, self.dt, self.substeps, out
+        )
         return out[:, 0] + q["theta_offset"]
 
     def turning_points(self, q: dict[str, float]) -> np.ndarray:
@@ -216,7 +218,7 @@ def _update(sw: _Swing, q: dict[str, float], free: tuple[str, ...], scales: dict
     cost = float(r @ r)
     mu = 1e-3
     it = 0
-    for it in range(1, MAX_ITERATIONS + 1):
+    for it in range(1, MAX_ITERATIONS + 1):  # noqa: B007 - the iterations used are returned
         S = np.empty((r.size, len(free)))
         for j in range(len(free)):
             h = 1e-4 * sc[j]
@@ -248,7 +250,15 @@ def _update(sw: _Swing, q: dict[str, float], free: tuple[str, ...], scales: dict
     return dict(q, **dict(zip(free, x))), err, it
 
 
-_SCALES = {"beta1": 0.1, "beta2": 0.01, "beta3": 0.01, "L": 0.01, "theta_offset": 0.01, "theta_init": 0.01, "thetadot_init": 0.1}
+_SCALES = {
+    "beta1": 0.1,
+    "beta2": 0.01,
+    "beta3": 0.01,
+    "L": 0.01,
+    "theta_offset": 0.01,
+    "theta_init": 0.01,
+    "thetadot_init": 0.1,
+}
 
 
 def fit_damping(record: Record, skip: int = 1) -> DampingFit:

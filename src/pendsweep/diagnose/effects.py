@@ -53,7 +53,16 @@ EFFECTS: dict[str, Effect] = {
         Effect("viscous_damping", "b2", _ALL, 4.5e-5, 0.0, _INF, "kg m^2/s", "pendulum viscous damping"),
         Effect("quadratic_drag", "b3", _ALL, 1e-6, 0.0, _INF, "kg m^2", "pendulum air drag"),
         Effect("pendulum_length", "l", _ALL, 0.2, 1e-3, _INF, "m", "effective length"),
-        Effect("angle_offset", "theta_offset", _ALL, 0.01, -_INF, _INF, "rad", "encoder zero offset, measured = true + theta_offset"),
+        Effect(
+            "angle_offset",
+            "theta_offset",
+            _ALL,
+            0.01,
+            -_INF,
+            _INF,
+            "rad",
+            "encoder zero offset, measured = true + theta_offset",
+        ),
         Effect("oscillator_damping", "C", _OSC, 20.0, 0.0, _INF, "kg/s", "oscillator damping"),
         Effect("oscillator_stiffness", "K", _OSC, 1910.0, 1.0, _INF, "N/m", "oscillator stiffness"),
         Effect("oscillator_mass", "M", _OSC, 10.9, 1e-2, _INF, "kg", "oscillator mass"),
@@ -62,7 +71,9 @@ EFFECTS: dict[str, Effect] = {
         Effect("actuator_delay", "tau", ("substructured",), 0.01, 0.0, _INF, "s", "x(t) = y_cmd(t - tau)"),
         Effect("platform_mass", "M2", ("substructured",), 0.9, 0.0, _INF, "kg", "platform mass"),
         Effect("platform_damping", "C2", ("substructured",), 10.0, 0.0, _INF, "kg/s", "platform damping"),
-        Effect("force_sensor_gain", "gain_Fs", ("substructured",), 1.0, 1e-3, _INF, "-", "measured Fs = gain_Fs x true Fs"),
+        Effect(
+            "force_sensor_gain", "gain_Fs", ("substructured",), 1.0, 1e-3, _INF, "-", "measured Fs = gain_Fs x true Fs"
+        ),
     )
 }
 

@@ -251,12 +251,19 @@ def _params(problem: Problem, causes: tuple[str, ...], starts: dict[str, float])
         if rp.fits_initial_state:
             for nm in NUISANCE:
                 key = problem.key(nm, i)
-                out.append(_Param(key, i, starts.get(key, rp.initial_guess[nm]), _NUISANCE_SCALE[nm], -math.inf, math.inf))
+                out.append(
+                    _Param(key, i, starts.get(key, rp.initial_guess[nm]), _NUISANCE_SCALE[nm], -math.inf, math.inf)
+                )
     return out
 
 
-def _solve(problem: Problem, params: list[_Param], objective: list[np.ndarray | None], fixed: dict[str, float],
-           staged: bool = False) -> tuple[dict[str, float], np.ndarray | None, np.ndarray]:
+def _solve(
+    problem: Problem,
+    params: list[_Param],
+    objective: list[np.ndarray | None],
+    fixed: dict[str, float],
+    staged: bool = False,
+) -> tuple[dict[str, float], np.ndarray | None, np.ndarray]:
     """Least squares of ``params`` on the samples ``objective[i]`` of each record (None: unused).
 
     Returns the values (``fixed`` included), the Jacobian in scaled units and the residuals.
@@ -353,8 +360,12 @@ def fit_model(problem: Problem | Replay, causes: tuple[str, ...] = (), starts: d
             own = [p for p in warm if p.record == i]
             vals, _, _ = _solve(problem, others, [None if j == i else q.eval_idx for j, q in enumerate(rps)], {})
             if own:
-                vals, _, _ = _solve(problem, own, [rp.eval_idx if j == i else None for j in range(len(rps))],
-                                    {k: v for k, v in vals.items()})
+                vals, _, _ = _solve(
+                    problem,
+                    own,
+                    [rp.eval_idx if j == i else None for j in range(len(rps))],
+                    {k: v for k, v in vals.items()},
+                )
             fold_values.append(vals)
             store(i, rp.simulate(problem.record_values(vals, i)), rp.eval_idx)
     for p in params:
@@ -375,7 +386,9 @@ def fit_model(problem: Problem | Replay, causes: tuple[str, ...] = (), starts: d
     error_cv = float(math.sqrt(np.mean(sq_all)))
     fit_sq = np.concatenate([rp.residuals(sims[i], rp.eval_idx) ** 2 for i, rp in enumerate(rps)])
     error_fit = float(math.sqrt(np.mean(fit_sq))) if np.all(np.isfinite(fit_sq)) else math.inf
-    return Fit(tuple(causes), values, stderr, error_fit, error_cv, fold_values, np.array(block_mse), record_cv, bic, sims, oof)
+    return Fit(
+        tuple(causes), values, stderr, error_fit, error_cv, fold_values, np.array(block_mse), record_cv, bic, sims, oof
+    )
 
 
 def _score(problem: Problem, fit: Fit, cause: str) -> float:
@@ -386,7 +399,11 @@ def _score(problem: Problem, fit: Fit, cause: str) -> float:
     """
     eff = effect(cause)
     base = dict(fit.values)
-    keys = [problem.key(eff.param, i) for i in range(len(problem.replays))] if problem.per_record(eff.param) else [eff.param]
+    keys = (
+        [problem.key(eff.param, i) for i in range(len(problem.replays))]
+        if problem.per_record(eff.param)
+        else [eff.param]
+    )
     moved = dict(base)
     for k in keys:
         v = base.get(k, problem.nominal_of(k))
@@ -451,10 +468,18 @@ def _judge(problem: Problem, base: Fit, model: Fit, share_min: float, causes: tu
         and all(z >= Z_MIN and stable for z, stable in zs.values())
     )
     return {
-        "model": model.cause, "against": base.cause or "nominal", "explained_share": share, "share_needed": share_min,
-        "reduction": reduction, "reduction_needed": FLOOR_SHARE * floor2, "p_value": p, "p_needed": P_VALUE,
-        "z": {c: z for c, (z, _) in zs.items()}, "z_needed": Z_MIN,
-        "folds_agree": {c: s for c, (_, s) in zs.items()}, "passed": bool(passed),
+        "model": model.cause,
+        "against": base.cause or "nominal",
+        "explained_share": share,
+        "share_needed": share_min,
+        "reduction": reduction,
+        "reduction_needed": FLOOR_SHARE * floor2,
+        "p_value": p,
+        "p_needed": P_VALUE,
+        "z": {c: z for c, (z, _) in zs.items()},
+        "z_needed": Z_MIN,
+        "folds_agree": {c: s for c, (_, s) in zs.items()},
+        "passed": bool(passed),
     }
 
 
@@ -598,7 +623,9 @@ def _diagnose(problem: Problem, causes: list[str] | None, n_jobs: int) -> Diagno
             if problem.kind == "substructured" and "actuator_delay" in others and "actuator_delay" not in partners:
                 partners.append("actuator_delay")  # its data-based start matters more than a local score
             tests["partner_scores"][single.cause] = scores
-            jobs += [(single, c) for c in partners if not any({single.cause, c} == set(s.causes) | {p} for s, p in jobs)]
+            jobs += [
+                (single, c) for c in partners if not any({single.cause, c} == set(s.causes) | {p} for s, p in jobs)
+            ]
         pairs = pool(delayed(fit_model)(problem, s.causes + (c,), dict(nuisance, **s.values)) for s, c in jobs)
         pair = min(pairs, key=lambda f: (f.error_cv, f.bic))
         # Judged against the better of its own two single causes.

@@ -40,10 +40,10 @@ import numpy as np
 from scipy.ndimage import maximum_filter1d, minimum_filter1d
 from scipy.signal import savgol_filter
 
+from ..data import Record
 from ..errors import ConfigError
 from ..kernels import driven_trace, pendulum_trace, substructured_replay
 from ..params import kernel_vector
-from ..data import Record
 from .effects import nominal_values
 
 #: Channels compared per kind.
@@ -101,9 +101,7 @@ class Replay:
 
     def __init__(self, record: Record, horizon: float | None = None, folds: int = FOLDS):
         if record.kind not in CHANNELS:
-            raise ConfigError(
-                f"kind {record.kind!r} cannot be replayed yet; supported kinds: {', '.join(CHANNELS)}"
-            )
+            raise ConfigError(f"kind {record.kind!r} cannot be replayed yet; supported kinds: {', '.join(CHANNELS)}")
         if not 2 <= folds <= 20:
             raise ConfigError(f"folds = {folds!r} must lie in [2, 20]")
         self.record = record
@@ -116,7 +114,9 @@ class Replay:
         self.constant = tuple(c for c in every if np.ptp(record.channel(c)) == 0.0)
         self.channels = tuple(c for c in every if c not in self.constant)
         if not self.channels:
-            raise ConfigError(f"{record.name}: every compared channel ({', '.join(every)}) is constant; nothing to compare")
+            raise ConfigError(
+                f"{record.name}: every compared channel ({', '.join(every)}) is constant; nothing to compare"
+            )
         self.meas = {c: record.channel(c) for c in self.channels}
         self.scale = {c: float(np.std(self.meas[c])) for c in self.channels}
         self.noise = {c: noise_std(self.meas[c]) for c in self.channels}
@@ -145,7 +145,9 @@ class Replay:
             starts = np.array([s for s, _ in self.segments])
             # y* of a substructured test is the command (no prediction).
             y = est["y_cmd" if self.kind == "substructured" else "y"]
-            self.states0 = np.stack([y[0][starts], y[1][starts], est["theta"][0][starts], est["theta"][1][starts]], axis=1)
+            self.states0 = np.stack(
+                [y[0][starts], y[1][starts], est["theta"][0][starts], est["theta"][1][starts]], axis=1
+            )
             if self.kind == "substructured":
                 self.command = np.ascontiguousarray(record.channel("y_cmd"))
                 self.command_slope = np.ascontiguousarray(est["y_cmd"][1])
@@ -202,8 +204,23 @@ class Replay:
             state[2] -= theta_offset
             cmd, cmdd = self.command.copy(), self.command_slope.copy()
             substructured_replay(
-                state, p, M1, C1, v["M2"], v["C2"], self.force, self.force_half, v["gain"], v["gain_Fs"],
-                v["tau"], self.dt, 1, cmd, cmdd, i0, sim[i0 : min(i1, stop)],
+                state,
+                p,
+                M1,
+                C1,
+                v["M2"],
+                v["C2"],
+                self.force,
+                self.force_half,
+                v["gain"],
+                v["gain_Fs"],
+                v["tau"],
+                self.dt,
+                1,
+                cmd,
+                cmdd,
+                i0,
+                sim[i0 : min(i1, stop)],
             )
         return {"y": sim[:, 0], "theta": sim[:, 1] + theta_offset, "Fs": sim[:, 2], "y_cmd": sim[:, 3]}
 

@@ -97,7 +97,9 @@ def _figures(diag: Diagnosis, outdir: Path) -> list[Path]:
             res = (fit.sim[c] - rp.meas[c]) / rp.scale[c]
             if np.all(np.isfinite(res)):
                 sp = residual_spectrum(res, rp.dt)
-                ax.semilogy(sp.frequency, sp.psd, style, lw=0.8, label=f"{c} {'nominal' if fit is diag.nominal else 'extended'}")
+                ax.semilogy(
+                    sp.frequency, sp.psd, style, lw=0.8, label=f"{c} {'nominal' if fit is diag.nominal else 'extended'}"
+                )
     ax.set_xlim(0, min(20.0, 0.5 / rp.dt))
     ax.set_xlabel("f [Hz]")
     ax.set_title("spectra of residual / std(channel)", fontsize=9)
@@ -123,7 +125,11 @@ def _figures(diag: Diagnosis, outdir: Path) -> list[Path]:
         return files
     ex_m = extrema(t, rp.meas["theta"], 3 * rp.noise["theta"] + 0.005)
     lines = ("-", "--") if rp.kind == "free_decay" else ("", "")  # forced swings: clouds, not curves
-    for label, theta, style in (("measured", rp.meas["theta"], "k."), ("nominal", diag.nominal.sim["theta"], "C0." + lines[0]), ("extended", ext.sim["theta"], "C3x" + lines[1])):
+    for label, theta, style in (
+        ("measured", rp.meas["theta"], "k."),
+        ("nominal", diag.nominal.sim["theta"], "C0." + lines[0]),
+        ("extended", ext.sim["theta"], "C3x" + lines[1]),
+    ):
         if not np.all(np.isfinite(theta)):
             continue
         ex = extrema(t, theta, 3 * rp.noise["theta"] + 0.005)
@@ -190,14 +196,22 @@ def write_report(diag: Diagnosis, outdir: Path, source: str) -> list[Path]:
     )
     val = js["validation"]
     if val["method"] == "leave-one-record-out":
-        split = (f"Validation: leave-one-record-out over {len(val['records'])} records (physics fitted on the others, "
-                 "the left-out record's initial state and chain parameters on itself).")
+        split = (
+            f"Validation: leave-one-record-out over {len(val['records'])} records (physics fitted on the others, "
+            "the left-out record's initial state and chain parameters on itself)."
+        )
     else:
-        split = (f"Validation: blocked cross-validation, {val['folds']} folds over {val['blocks']} contiguous blocks of "
-                 f"{val['block_seconds']:.3g} s (fold k holds out blocks k, k + {val['folds']}, ...), over the "
-                 f"{val['compared_seconds']:.3g} s of the {val['record_seconds']:.3g} s record where the data move"
-                 + (f"; constant channel(s) {', '.join(val['constant_channels'])} not compared" if val["constant_channels"] else "")
-                 + ".")
+        split = (
+            f"Validation: blocked cross-validation, {val['folds']} folds over {val['blocks']} contiguous blocks of "
+            f"{val['block_seconds']:.3g} s (fold k holds out blocks k, k + {val['folds']}, ...), over the "
+            f"{val['compared_seconds']:.3g} s of the {val['record_seconds']:.3g} s record where the data move"
+            + (
+                f"; constant channel(s) {', '.join(val['constant_channels'])} not compared"
+                if val["constant_channels"]
+                else ""
+            )
+            + "."
+        )
     lines = [
         f"# Diagnosis of `{source}`",
         "",
@@ -206,7 +220,8 @@ def write_report(diag: Diagnosis, outdir: Path, source: str) -> list[Path]:
         "",
         "## Verdict",
         "",
-        f"**cause: `{js['cause']}`**" + (f" — {', '.join(EFFECTS[c].meaning for c in diag.best.causes)}" if diag.best else ""),
+        f"**cause: `{js['cause']}`**"
+        + (f" — {', '.join(EFFECTS[c].meaning for c in diag.best.causes)}" if diag.best else ""),
         "",
         "| quantity | value |",
         "|---|---|",
@@ -219,10 +234,14 @@ def write_report(diag: Diagnosis, outdir: Path, source: str) -> list[Path]:
     ]
     if val["method"] == "leave-one-record-out":
         for name, e0, e1 in zip(val["records"], val["cross_record_error_nominal"], val["cross_record_error"]):
-            lines.append(f"| cross-record prediction NRMSE of `{name}`, nominal -> verdict | {_fmt(e0)} -> {_fmt(e1)} |")
+            lines.append(
+                f"| cross-record prediction NRMSE of `{name}`, nominal -> verdict | {_fmt(e0)} -> {_fmt(e1)} |"
+            )
     for c in diag.best.causes if diag.best else ():
         for k in diag.best.keys_of(c):
-            lines.append(f"| estimate {k} [{EFFECTS[c].unit}] | {_fmt(js['estimate'][k])} ± {_fmt(js['uncertainty'][k])} |")
+            lines.append(
+                f"| estimate {k} [{EFFECTS[c].unit}] | {_fmt(js['estimate'][k])} ± {_fmt(js['uncertainty'][k])} |"
+            )
     for key, label in (("first_round", "the best single cause"), ("second_round", "the best pair")):
         t = diag.tests.get(key)
         if t:
@@ -233,23 +252,48 @@ def write_report(diag: Diagnosis, outdir: Path, source: str) -> list[Path]:
                 f"(needed >= {t['share_needed']:g}); block Wilcoxon p = {_fmt(t['p_value'])} (needed < {t['p_needed']:g}); "
                 f"|change| / uncertainty {zs} (needed >= {t['z_needed']:g}, same sign in every fold: "
                 f"{all(t['folds_agree'].values())}); passed: {t['passed']}"
-                + (f"; beats the single cause with the actuator delay freed: {t['chain_ok']}" if "chain_check" in t else "")
+                + (
+                    f"; beats the single cause with the actuator delay freed: {t['chain_ok']}"
+                    if "chain_check" in t
+                    else ""
+                )
                 + ".",
             ]
-    lines += ["", "## What remains", "", "Out-of-fold residual of the verdict model (peaks as multiples of the reference "
-              "frequency with their share of the residual power; lag-1 autocorrelation; largest correlation with the inputs):", ""]
+    lines += [
+        "",
+        "## What remains",
+        "",
+        "Out-of-fold residual of the verdict model (peaks as multiples of the reference "
+        "frequency with their share of the residual power; lag-1 autocorrelation; largest correlation with the inputs):",
+        "",
+    ]
     for rec_name, rec in js["residual_signature"].items():
         for c, e in rec.items():
             if not isinstance(e, dict):
                 continue
-            peaks = ", ".join(f"{p['multiple']:.3g} {rec['reference']} ({100 * p['power_share']:.0f} %)" for p in e["peaks"])
-            corr = ", ".join(f"{k[5:]} {_fmt(v)}" for k, v in e.items() if k.startswith("corr_") and not k.endswith("_lag_s"))
-            lines.append(f"- `{rec_name}` {c}: rms {_fmt(e['rms'])}, lag-1 {_fmt(e['lag1'])}; peaks {peaks}; corr {corr}")
+            peaks = ", ".join(
+                f"{p['multiple']:.3g} {rec['reference']} ({100 * p['power_share']:.0f} %)" for p in e["peaks"]
+            )
+            corr = ", ".join(
+                f"{k[5:]} {_fmt(v)}" for k, v in e.items() if k.startswith("corr_") and not k.endswith("_lag_s")
+            )
+            lines.append(
+                f"- `{rec_name}` {c}: rms {_fmt(e['rms'])}, lag-1 {_fmt(e['lag1'])}; peaks {peaks}; corr {corr}"
+            )
     amb = ambiguous_with(diag)
     if amb:
-        lines += ["", f"Not distinguishable on this record from: {', '.join(f'`{a}`' for a in amb)} "
-                  "(cross-validated errors within 10% above the noise floor). A record with more amplitude range or a second forcing tone separates them."]
-    lines += ["", "## Candidates (sorted by cross-validated NRMSE)", "", "| cause | estimate | ± | cross-validated NRMSE | BIC (fit) |", "|---|---|---|---|---|"]
+        lines += [
+            "",
+            f"Not distinguishable on this record from: {', '.join(f'`{a}`' for a in amb)} "
+            "(cross-validated errors within 10% above the noise floor). A record with more amplitude range or a second forcing tone separates them.",
+        ]
+    lines += [
+        "",
+        "## Candidates (sorted by cross-validated NRMSE)",
+        "",
+        "| cause | estimate | ± | cross-validated NRMSE | BIC (fit) |",
+        "|---|---|---|---|---|",
+    ]
     for c in diag.candidates:
         est = ", ".join(f"{p} = {_fmt(v)}" for p, v in c.estimate.items())
         err = ", ".join(_fmt(c.stderr[p]) for p in c.estimate)
@@ -278,7 +322,6 @@ def write_report(diag: Diagnosis, outdir: Path, source: str) -> list[Path]:
     report = outdir / "report.md"
     report.write_text("\n".join(lines) + "\n")
     return [report] + files
-
 
 
 def plot_envelopes(curves: dict[str, tuple[np.ndarray, np.ndarray]], path: Path) -> Path:

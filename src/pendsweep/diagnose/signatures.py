@@ -153,7 +153,9 @@ def summarize(replay, nominal_sim: dict[str, np.ndarray]) -> dict[str, Any]:
         bb = backbone(ex)
         out["frequency_at_small_amplitude_hz"] = float(bb.frequency[bb.amplitude.idxmin()])
         out["frequency_at_large_amplitude_hz"] = float(bb.frequency[bb.amplitude.idxmax()])
-        out["nominal_small_amplitude_frequency_hz"] = math.sqrt(replay.nominal["g"] / replay.nominal["l"]) / (2 * math.pi)
+        out["nominal_small_amplitude_frequency_hz"] = math.sqrt(replay.nominal["g"] / replay.nominal["l"]) / (
+            2 * math.pi
+        )
     return out
 
 
@@ -204,7 +206,10 @@ def residual_signature(problem, fit, peaks: int = 3) -> dict[str, Any]:
             entry: dict[str, Any] = {
                 "rms": float(np.sqrt(np.mean(r * r))),
                 "lag1": float(np.corrcoef(r[:-1], r[1:])[0, 1]),
-                "peaks": [{"multiple": float(freq[j] / f_ref), "hz": float(freq[j]), "power_share": float(psd[j] / psd.sum())} for j in top],
+                "peaks": [
+                    {"multiple": float(freq[j] / f_ref), "hz": float(freq[j]), "power_share": float(psd[j] / psd.sum())}
+                    for j in top
+                ],
             }
             for name, s in inputs.items():
                 xc = cross_correlation(r, s, rp.dt, 0.1)

@@ -17,10 +17,10 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from ..backends.substructured import SubstructuredBackend as _Rig
 from ..data import Record
 from ..errors import ConfigError
 from ..kernels import driven_trace, pendulum_trace, substructured_replay
-from ..backends.substructured import SubstructuredBackend as _Rig
 from ..params import ModelParams
 from .effects import EFFECTS, nominal_values, split_values
 
@@ -113,7 +113,9 @@ def synthesize(
         data = pd.DataFrame({"t": t, "theta": _measure(theta + chain["theta_offset"], sensors.theta_step, 0.0, rng)})
         return Record(data, kind, nominal, name="synth")
     if kind == "substructured":
-        return _substructured(model, chain, nominal, n, dt, rate, transient, theta_init, thetadot_init, oversample, sensors, rng, tone2)
+        return _substructured(
+            model, chain, nominal, n, dt, rate, transient, theta_init, thetadot_init, oversample, sensors, rng, tone2
+        )
     n_tr = int(round(transient * rate)) * oversample
     m = (n - 1) * oversample + 1 + n_tr
     tf = np.arange(m) * h
@@ -134,7 +136,9 @@ def synthesize(
     return Record(data, kind, nominal, forcing={"alpha": model.alpha, "fe": model.fe}, name="synth")
 
 
-def _substructured(model, chain, nominal, n, dt, rate, transient, theta_init, thetadot_init, oversample, sensors, rng, tone2):
+def _substructured(
+    model, chain, nominal, n, dt, rate, transient, theta_init, thetadot_init, oversample, sensors, rng, tone2
+):
     """A substructuring test: the loop at the sample rate, the rig ``oversample`` times finer.
 
     The numerical model uses the nominal split ``M1 = M - M2``, ``C1 = C - C2``
@@ -153,8 +157,23 @@ def _substructured(model, chain, nominal, n, dt, rate, transient, theta_init, th
     cmd, cmdd = np.zeros(m), np.zeros(m)
     out = np.empty((m, 4))
     substructured_replay(
-        np.array([0.0, 0.0, theta_init, thetadot_init]), model.kernel_array(), M1, C1, model.M2, model.C2,
-        force, half, chain["gain"], chain["gain_Fs"], chain["tau"], dt, oversample, cmd, cmdd, 0, out,
+        np.array([0.0, 0.0, theta_init, thetadot_init]),
+        model.kernel_array(),
+        M1,
+        C1,
+        model.M2,
+        model.C2,
+        force,
+        half,
+        chain["gain"],
+        chain["gain_Fs"],
+        chain["tau"],
+        dt,
+        oversample,
+        cmd,
+        cmdd,
+        0,
+        out,
     )
     rec = out[n_tr:]
     data = pd.DataFrame(

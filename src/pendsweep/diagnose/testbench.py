@@ -61,8 +61,14 @@ SERVO_DELAY, SERVO_WN, SERVO_ZETA = 0.003, 2.0 * math.pi * 40.0, 0.7
 
 #: Effects outside the vocabulary: name -> (kinds, meaning).
 OUT_OF_VOCABULARY = {
-    "encoder_nonlinearity": (("free_decay", "forced", "substructured"), "measured theta = theta + a sin(20 theta), a [rad]"),
-    "damping_drift": (("free_decay", "forced", "substructured"), "pendulum b2 (free decay) or oscillator C (forced) or platform C2 (substructured) grows linearly to (1 + a) x nominal over the record"),
+    "encoder_nonlinearity": (
+        ("free_decay", "forced", "substructured"),
+        "measured theta = theta + a sin(20 theta), a [rad]",
+    ),
+    "damping_drift": (
+        ("free_decay", "forced", "substructured"),
+        "pendulum b2 (free decay) or oscillator C (forced) or platform C2 (substructured) grows linearly to (1 + a) x nominal over the record",
+    ),
     "stiffness_drift": (("forced",), "oscillator K grows linearly to (1 + a) x nominal over the record"),
     "cubic_damping": (("forced",), "oscillator damping force C y' + a y'^3, a [N s^3/m^3]"),
     "servo_gain": (("substructured",), "actuator follows (1 - a) x its command"),
@@ -186,8 +192,33 @@ def _ramp(cmd, q):
 
 
 @nb.njit(cache=True)
-def rig_truth(z, m, l, b, g, M1, C1, K, k3, M2, C2, gain, gain_fs, amps, freqs, dt, nsub, n0, n,
-              delay, wn, zeta, servo_gain, fs_noise, drift_c2):
+def rig_truth(
+    z,
+    m,
+    l,
+    b,
+    g,
+    M1,
+    C1,
+    K,
+    k3,
+    M2,
+    C2,
+    gain,
+    gain_fs,
+    amps,
+    freqs,
+    dt,
+    nsub,
+    n0,
+    n,
+    delay,
+    wn,
+    zeta,
+    servo_gain,
+    fs_noise,
+    drift_c2,
+):
     """A substructuring test: controller at ``dt``, rig RK4 ``nsub`` steps per tick.
 
     Controller tick k: read the load cell (the interface force averaged over
@@ -218,13 +249,13 @@ def rig_truth(z, m, l, b, g, M1, C1, K, k3, M2, C2, gain, gain_fs, amps, freqs, 
         f0 = gain * _tones(t, amps, freqs) - fs_meas
         fh = gain * _tones(t + 0.5 * dt, amps, freqs) - fs_meas
         f1 = gain * _tones(t + dt, amps, freqs) - fs_meas
-        a1 = (f0 - C1 * yds - K * ys - k3 * ys ** 3) / M1
+        a1 = (f0 - C1 * yds - K * ys - k3 * ys**3) / M1
         p2, v2 = ys + 0.5 * dt * yds, yds + 0.5 * dt * a1
-        a2 = (fh - C1 * v2 - K * p2 - k3 * p2 ** 3) / M1
+        a2 = (fh - C1 * v2 - K * p2 - k3 * p2**3) / M1
         p3, v3 = ys + 0.5 * dt * v2, yds + 0.5 * dt * a2
-        a3 = (fh - C1 * v3 - K * p3 - k3 * p3 ** 3) / M1
+        a3 = (fh - C1 * v3 - K * p3 - k3 * p3**3) / M1
         p4, v4 = ys + dt * v3, yds + dt * a3
-        a4 = (f1 - C1 * v4 - K * p4 - k3 * p4 ** 3) / M1
+        a4 = (f1 - C1 * v4 - K * p4 - k3 * p4**3) / M1
         ys_next = ys + dt * (yds + 2.0 * v2 + 2.0 * v3 + v4) / 6.0
         yds = yds + dt * (a1 + 2.0 * a2 + 2.0 * a3 + a4) / 6.0
         ys = ys_next
@@ -238,9 +269,37 @@ def rig_truth(z, m, l, b, g, M1, C1, K, k3, M2, C2, gain, gain_fs, amps, freqs, 
             u4 = _ramp(cmd, (tj + h - delay) / dt)
             dx1, dv1, dt1, dw1 = _rig_rhs(x, xd, th, thd, u1, m, l, b, g, wn, zeta, servo_gain)
             fa = _interface_force(xd, dv1, th, thd, dw1, M2, c2, m, l)
-            dx2, dv2, dt2, dw2 = _rig_rhs(x + 0.5 * h * dx1, xd + 0.5 * h * dv1, th + 0.5 * h * dt1, thd + 0.5 * h * dw1, u2, m, l, b, g, wn, zeta, servo_gain)
-            dx3, dv3, dt3, dw3 = _rig_rhs(x + 0.5 * h * dx2, xd + 0.5 * h * dv2, th + 0.5 * h * dt2, thd + 0.5 * h * dw2, u2, m, l, b, g, wn, zeta, servo_gain)
-            dx4, dv4, dt4, dw4 = _rig_rhs(x + h * dx3, xd + h * dv3, th + h * dt3, thd + h * dw3, u4, m, l, b, g, wn, zeta, servo_gain)
+            dx2, dv2, dt2, dw2 = _rig_rhs(
+                x + 0.5 * h * dx1,
+                xd + 0.5 * h * dv1,
+                th + 0.5 * h * dt1,
+                thd + 0.5 * h * dw1,
+                u2,
+                m,
+                l,
+                b,
+                g,
+                wn,
+                zeta,
+                servo_gain,
+            )
+            dx3, dv3, dt3, dw3 = _rig_rhs(
+                x + 0.5 * h * dx2,
+                xd + 0.5 * h * dv2,
+                th + 0.5 * h * dt2,
+                thd + 0.5 * h * dw2,
+                u2,
+                m,
+                l,
+                b,
+                g,
+                wn,
+                zeta,
+                servo_gain,
+            )
+            dx4, dv4, dt4, dw4 = _rig_rhs(
+                x + h * dx3, xd + h * dv3, th + h * dt3, thd + h * dw3, u4, m, l, b, g, wn, zeta, servo_gain
+            )
             x += h * (dx1 + 2.0 * dx2 + 2.0 * dx3 + dx4) / 6.0
             xd += h * (dv1 + 2.0 * dv2 + 2.0 * dv3 + dv4) / 6.0
             th += h * (dt1 + 2.0 * dt2 + 2.0 * dt3 + dt4) / 6.0
@@ -334,16 +393,43 @@ def generate(case: Case) -> Record:
     n0 = int(round(case.transient * case.rate))
     z = np.array([0.0, 0.0, case.theta_init, 0.0])
     if kind == "forced":
-        rec = forced_truth(z, m, l, b, g, truth["M"], truth["C"], ex.get("cubic_damping", 0.0), truth["K"], truth["k3"],
-                           truth["gain"], amps, freqs, h, nsub, n0, n, ex.get("damping_drift", 0.0), ex.get("stiffness_drift", 0.0))
+        rec = forced_truth(
+            z,
+            m,
+            l,
+            b,
+            g,
+            truth["M"],
+            truth["C"],
+            ex.get("cubic_damping", 0.0),
+            truth["K"],
+            truth["k3"],
+            truth["gain"],
+            amps,
+            freqs,
+            h,
+            nsub,
+            n0,
+            n,
+            ex.get("damping_drift", 0.0),
+            ex.get("stiffness_drift", 0.0),
+        )
         fe = _tones_array(t + n0 * dt, amps, freqs)
-        data = pd.DataFrame({
-            "t": t,
-            "theta": _encoder(rec[:, 1] + truth["theta_offset"], ex, rng),
-            "y": _lvdt(rec[:, 0], rng),
-            "Fe": fe + rng.normal(0.0, FORCE_NOISE, n) + _drift(n, FORCE_DRIFT, rng),
-        })
-        return Record(data, kind, nominal, forcing={"alpha": nominal.alpha, "fe": nominal.fe}, name=f"testbench:{case.label}:{case.seed}")
+        data = pd.DataFrame(
+            {
+                "t": t,
+                "theta": _encoder(rec[:, 1] + truth["theta_offset"], ex, rng),
+                "y": _lvdt(rec[:, 0], rng),
+                "Fe": fe + rng.normal(0.0, FORCE_NOISE, n) + _drift(n, FORCE_DRIFT, rng),
+            }
+        )
+        return Record(
+            data,
+            kind,
+            nominal,
+            forcing={"alpha": nominal.alpha, "fe": nominal.fe},
+            name=f"testbench:{case.label}:{case.seed}",
+        )
     # Substructured: the numerical model's M1, C1 are code (nominal split); M, C effects move them.
     M1 = truth["M"] - nominal.M2
     C1 = truth["C"] - nominal.C2
@@ -351,19 +437,51 @@ def generate(case: Case) -> Record:
     # An actuator_delay effect sets the true effective delay; the servo's own share stays.
     delay = truth["tau"] - (tau_nominal - SERVO_DELAY) if "actuator_delay" in case.effects else SERVO_DELAY
     fs_noise = rng.normal(0.0, FORCE_NOISE, n0 + n) + np.concatenate([np.zeros(n0), _drift(n, FORCE_DRIFT, rng)])
-    rec = rig_truth(z, m, l, b, g, M1, C1, truth["K"], truth["k3"], truth["M2"], truth["C2"], truth["gain"], truth["gain_Fs"],
-                    amps, freqs, dt, nsub, n0, n, delay, SERVO_WN, SERVO_ZETA, 1.0 - ex.get("servo_gain", 0.0), fs_noise,
-                    ex.get("damping_drift", 0.0))
-    data = pd.DataFrame({
-        "t": t,
-        "theta": _encoder(rec[:, 1] + truth["theta_offset"], ex, rng),
-        "y": _lvdt(rec[:, 0], rng),
-        "Fe": rec[:, 4],
-        "y_cmd": rec[:, 3],
-        "Fs": rec[:, 2],
-    })
-    return Record(data, kind, nominal, tau=tau_nominal, forcing={"alpha": nominal.alpha, "fe": nominal.fe},
-                  name=f"testbench:{case.label}:{case.seed}")
+    rec = rig_truth(
+        z,
+        m,
+        l,
+        b,
+        g,
+        M1,
+        C1,
+        truth["K"],
+        truth["k3"],
+        truth["M2"],
+        truth["C2"],
+        truth["gain"],
+        truth["gain_Fs"],
+        amps,
+        freqs,
+        dt,
+        nsub,
+        n0,
+        n,
+        delay,
+        SERVO_WN,
+        SERVO_ZETA,
+        1.0 - ex.get("servo_gain", 0.0),
+        fs_noise,
+        ex.get("damping_drift", 0.0),
+    )
+    data = pd.DataFrame(
+        {
+            "t": t,
+            "theta": _encoder(rec[:, 1] + truth["theta_offset"], ex, rng),
+            "y": _lvdt(rec[:, 0], rng),
+            "Fe": rec[:, 4],
+            "y_cmd": rec[:, 3],
+            "Fs": rec[:, 2],
+        }
+    )
+    return Record(
+        data,
+        kind,
+        nominal,
+        tau=tau_nominal,
+        forcing={"alpha": nominal.alpha, "fe": nominal.fe},
+        name=f"testbench:{case.label}:{case.seed}",
+    )
 
 
 def _tones_array(t: np.ndarray, amps: np.ndarray, freqs: np.ndarray) -> np.ndarray:
@@ -424,9 +542,21 @@ RANGES = {
 PENDULUM_CAUSES = {"coulomb_friction", "viscous_damping", "quadratic_drag", "pendulum_length", "angle_offset"}
 #: Pairs drawn for two-effect records (effects on different parts of the model).
 PAIRS = {
-    "free_decay": [("pendulum_length", "coulomb_friction"), ("pendulum_length", "viscous_damping"), ("angle_offset", "quadratic_drag")],
-    "forced": [("oscillator_damping", "pendulum_length"), ("spring_hardening", "forcing_gain"), ("oscillator_stiffness", "angle_offset")],
-    "substructured": [("actuator_delay", "oscillator_damping"), ("platform_mass", "pendulum_length"), ("spring_hardening", "force_sensor_gain")],
+    "free_decay": [
+        ("pendulum_length", "coulomb_friction"),
+        ("pendulum_length", "viscous_damping"),
+        ("angle_offset", "quadratic_drag"),
+    ],
+    "forced": [
+        ("oscillator_damping", "pendulum_length"),
+        ("spring_hardening", "forcing_gain"),
+        ("oscillator_stiffness", "angle_offset"),
+    ],
+    "substructured": [
+        ("actuator_delay", "oscillator_damping"),
+        ("platform_mass", "pendulum_length"),
+        ("spring_hardening", "force_sensor_gain"),
+    ],
 }
 #: Magnitude ranges of the out-of-vocabulary effects.
 OOV_RANGES = {

@@ -252,7 +252,9 @@ def _integrate_chunk(state, p, alpha, fe, steps, lanes, lo, sgn_per_stage, out, 
             if period_end[i] == k + 1:
                 period_end[i] += steps[i]
                 if live[i] != 0.0:
-                    _close_period(i, y, yd, th, thd, peak, yabs, live, swing, period, lanes, lo, out, status, done, stretch)
+                    _close_period(
+                        i, y, yd, th, thd, peak, yabs, live, swing, period, lanes, lo, out, status, done, stretch
+                    )
             next_end = min(next_end, period_end[i])
         if live.max() == 0.0:
             break

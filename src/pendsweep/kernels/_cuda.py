@@ -186,7 +186,7 @@ def _emulated_periods_thread(state, params, alpha, dt, steps, table_start, table
     done[i] = periods
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def emulated_kernel(precision: str = "float64", sgn_per_stage: bool = False):
     """The CUDA kernel (a ``cuda.jit`` dispatcher) of :func:`emulated_kernel_function`."""
     return import_cuda().jit(emulated_kernel_function(precision, sgn_per_stage))

@@ -27,9 +27,9 @@ from ._layout import (
     STATUS_DIVERGED,
     STATUS_OK,
 )
+from ._records import TWO_PI, record_close, record_open, record_sample, wrap_index
 from ._rhs import signum
 from ._steps import eq11_rk4
-from ._records import TWO_PI, record_close, record_open, record_sample, wrap_index
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
@@ -71,9 +71,7 @@ def forcing_table(alpha, steps_per_period):
 
 
 @nb.njit(cache=True, nogil=True)
-def emulated_periods(
-    state, p, alpha, fe, steps_per_period, transient_periods, sgn_per_stage, out
-):
+def emulated_periods(state, p, alpha, fe, steps_per_period, transient_periods, sgn_per_stage, out):
     """Integrate whole forcing periods and fill per-period records.
 
     Parameters
@@ -150,7 +148,7 @@ def emulated_trace(state, p, alpha, fe, steps_per_period, n_periods, sgn_per_sta
     out[0, 0], out[0, 1], out[0, 2], out[0, 3], out[0, 4] = 0.0, y, yd, th, thd
     status = STATUS_OK
     k = 0
-    for period in range(n_periods):
+    for _ in range(n_periods):
         for j in range(n):
             y, yd, th, thd = eq11_step((y, yd, th, thd), table[2 * j], table[2 * j + 1], table[2 * j + 2], dt, q)
             k += 1

@@ -93,7 +93,9 @@ def driven_trace(state, p, force, force_half, gain, dt, out):
     out[0, 0], out[0, 1], out[0, 2], out[0, 3] = y, yd, th, thd
     q = eq11_params(p, False, False)
     for i in range(1, out.shape[0]):
-        y, yd, th, thd = eq11_step((y, yd, th, thd), gain * force[i - 1], gain * force_half[i - 1], gain * force[i], dt, q)
+        y, yd, th, thd = eq11_step(
+            (y, yd, th, thd), gain * force[i - 1], gain * force_half[i - 1], gain * force[i], dt, q
+        )
         if not (math.isfinite(y) and math.isfinite(yd) and math.isfinite(th) and math.isfinite(thd)):
             out[i:, :] = np.nan
             return STATUS_DIVERGED
@@ -115,7 +117,9 @@ def _delayed_command(cmd, cmdd, k, r, tau, dt):
 
 
 @nb.njit(cache=True, nogil=True)
-def substructured_replay(state, p, M1, C1, M2, C2, force, force_half, gain, gain_fs, tau, dt, substeps, cmd, cmdd, k0, out):
+def substructured_replay(
+    state, p, M1, C1, M2, C2, force, force_half, gain, gain_fs, tau, dt, substeps, cmd, cmdd, k0, out
+):
     """The substructuring loop driven by a recorded F_e, with x(t) = y_cmd(t - tau).
 
     Each tick follows :func:`pendsweep.kernels._substructured.substructured_loop`

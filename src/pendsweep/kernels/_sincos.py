@@ -15,9 +15,8 @@ The pendulum angle is rewrapped to (-pi, pi] every forcing period, so it
 stays within a few tens of radians even while rotating.
 """
 
-import numpy as np
-
 import numba as nb
+import numpy as np
 
 _INV_PIO2 = 6.36619772367581382433e-01
 _PIO2_1 = 1.57079632673412561417e00  # first 33 bits of pi/2

@@ -17,8 +17,8 @@ on ``k``: roots move right as tau grows where ``|L|`` decreases through 1
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 from scipy.optimize import brentq
@@ -202,8 +202,7 @@ def delay_margin(loop: LoopParams) -> DelayMargin:
     first = min(destab, key=lambda c: c.tau)
     return DelayMargin(
         "critical",
-        f"a root pair crosses into the right half-plane at tau* = {first.tau:.6g} s, "
-        f"omega* = {first.omega:.6g} rad/s",
+        f"a root pair crosses into the right half-plane at tau* = {first.tau:.6g} s, omega* = {first.omega:.6g} rad/s",
         tau_star=first.tau,
         omega_star=first.omega,
         crossings=crossings,
@@ -222,9 +221,7 @@ def _peak_gain(loop: LoopParams) -> float:
     return max(values + [loop.ms / loop.M1])
 
 
-def stability_chart(
-    omega_n: float, zeta: float, c2_over_c1: float, p: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
+def stability_chart(omega_n: float, zeta: float, c2_over_c1: float, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Fig. 6: maximum delay against mass ratio for one damping case.
 
     Parameters
@@ -298,7 +295,9 @@ def servo_delay_margin(loop: LoopParams, bandwidth: float, damping: float, hold:
     )
     destab = [c for c in crossings if c.destabilising]
     if not destab:
-        return DelayMargin("stable_all_delays", "|F_s N_m G| < 1 at every frequency: stable for all delays", crossings=crossings)
+        return DelayMargin(
+            "stable_all_delays", "|F_s N_m G| < 1 at every frequency: stable for all delays", crossings=crossings
+        )
     first = min(destab, key=lambda c: c.tau)
     return DelayMargin(
         "critical",

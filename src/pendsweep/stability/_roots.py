@@ -156,9 +156,7 @@ def spectral_abscissa(loop: LoopParams, tau: float) -> float:
     return top
 
 
-def count_roots(
-    loop: LoopParams, tau: float, re_min: float, re_max: float, im_max: float, samples: int = 4000
-) -> int:
+def count_roots(loop: LoopParams, tau: float, re_min: float, re_max: float, im_max: float, samples: int = 4000) -> int:
     """Number of roots in ``re_min < Re s < re_max, |Im s| < im_max`` (argument principle).
 
     The winding of ``D`` along the rectangle is summed from the phase steps
@@ -190,6 +188,7 @@ def critical_delay_from_roots(
     -------
     (tau_star [s], omega_star [rad/s]) or None if no crossing below ``tau_max``.
     """
+
     def top(tau: float) -> complex:
         return complex(rightmost_roots(loop, tau, count=1)[0])
 

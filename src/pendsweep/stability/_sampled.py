@@ -42,6 +42,7 @@ import numpy as np
 import scipy.linalg
 from scipy import signal
 
+from ..errors import ConfigError
 from ..loop import (
     ACTUATORS,
     MAX_PREDICTOR_ORDER,
@@ -51,7 +52,6 @@ from ..loop import (
     prediction_horizon,
     predictor_weights,
 )
-from ..errors import ConfigError
 from ..params import LoopParams
 
 __all__ = ["SampledLoop", "SampledMargin", "open_loop", "sampled_response", "multipliers", "sampled_delay_margin"]
@@ -240,9 +240,7 @@ def open_loop(loop: LoopParams, tau: float, cfg: SampledLoop) -> Rational:
     delta = max(tau - d * dt, 0.0)
     ny, nv, dm = _model(loop, dt)
     if cfg.predicts:
-        matched = effective_delay(
-            cfg.actuator, tau, cfg.servo_bandwidth, cfg.servo_damping, dt, cfg.filter_frequency
-        )
+        matched = effective_delay(cfg.actuator, tau, cfg.servo_bandwidth, cfg.servo_damping, dt, cfg.filter_frequency)
         horizon = prediction_horizon(cfg.tau_hat, matched)
         w, wd = predictor_weights(cfg.predictor_order, cfg.predictor_points, horizon, dt)
         to_c, to_cd = _mul((ny, dm), _fir(w)), _mul((ny, dm), _fir(wd))
@@ -287,6 +285,7 @@ def sampled_delay_margin(loop: LoopParams, cfg: SampledLoop, tau_max: float, tol
     Scans ``[0, tau_max]`` in steps of ``dt`` for the first delay with a
     multiplier of modulus >= 1, then bisects to ``tol`` [s].
     """
+
     def radius(tau: float) -> float:
         return float(np.abs(multipliers(loop, tau, cfg)[0]))
 
