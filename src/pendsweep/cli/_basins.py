@@ -14,21 +14,11 @@ import click
 from ..errors import ConfigError, ParameterError
 from ..params import PARAM_SPECS
 from ._app import FINITE, LazyChoice, main
+from ._checks import FIGURE_SUFFIXES, check_output, key_values
 from ._executor import apply_options, executor_options
 from ._sweep import DEVICE_OPTION, load_model_file
 
 _MODEL_FLAGS = (("alpha", "alpha", "N"), ("fe", "fe", "Hz"), ("M", "M_", "kg"), ("C", "C_", "kg/s"), ("K", "K_", "N/m"))
-
-
-def _key_value(pairs: tuple[str, ...], what: str) -> dict[str, str]:
-    """``NAME=VALUE`` pairs as a dict of strings."""
-    out = {}
-    for pair in pairs:
-        if "=" not in pair:
-            raise ConfigError(f"{what} {pair!r} must look like NAME=VALUE")
-        k, v = pair.split("=", 1)
-        out[k.strip()] = v.strip()
-    return out
 
 
 def _finite(name: str, text: str) -> float:
@@ -82,7 +72,7 @@ def _model(kw: dict[str, Any]) -> dict[str, Any]:
     for name, key, _ in _MODEL_FLAGS:
         if kw[key] is not None:
             model[name] = kw[key]
-    model.update(_key_value(kw["sets"], "--set"))
+    model.update(key_values(kw["sets"], "--set"))
     for name in model:
         if name not in PARAM_SPECS:
             raise ParameterError(f"unknown parameter {name!r}; known: {', '.join(PARAM_SPECS)}")
@@ -230,6 +220,9 @@ def basins_command(parameter, start, stop, step, points, **kw):
     from ..gpu import with_device
     from ..sweep import value_range
 
+    check_output(kw["output"], "-o/--output", (".parquet",))
+    check_output(kw["json_path"], "--json", (".json",))
+    check_output(kw["plot_path"], "--plot", FIGURE_SUFFIXES)
     model = {k: _finite(k, v) if isinstance(v, str) else v for k, v in _model(kw).items()}
     if parameter is None:
         if any(v is not None for v in (start, stop, step, points)):
@@ -248,7 +241,7 @@ def basins_command(parameter, start, stop, step, points, **kw):
         values = tuple(value_range(start, stop, step, points))
         if parameter in model:
             raise ConfigError(f"{parameter} is the stepped PARAMETER; drop its fixed value {model[parameter]!r}")
-    backend_options = _key_value(kw["backend_opts"], "--backend-option")
+    backend_options = key_values(kw["backend_opts"], "--backend-option")
     if kw["dt"] is not None:
         backend_options["dt"] = kw["dt"]
     backend_options = with_device(kw["backend"], backend_options, kw["device"] or backend_options.get("device"))
@@ -398,6 +391,8 @@ def map_command(x, y, **kw):
     from ..gpu import require_cuda
     from ..maps import MapConfig, hopf_boundaries, parse_axis, run_map
 
+    check_output(kw["output"], "-o/--output", (".parquet",))
+    check_output(kw["plot_path"], "--plot", FIGURE_SUFFIXES)
     raw = _model(kw)
     if x == y:
         raise ConfigError(f"the two map axes must differ (both are {x!r})")
