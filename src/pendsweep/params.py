@@ -212,9 +212,7 @@ class ModelParams:
 
     def kernel_array(self) -> np.ndarray:
         """Contiguous float64 vector of the :data:`KERNEL_FIELDS` for the kernels."""
-        import numpy as np  # imported here so that reading parameters (`pendsweep --help`) does not load numpy
-
-        return np.array([getattr(self, name) for name in KERNEL_FIELDS], dtype=np.float64)
+        return kernel_vector(self.__dict__)  # the fields themselves: asdict's deep copy costs more than the sweep
 
 
 #: The kernels' parameter vector, in order: the fields of :class:`ModelParams`

@@ -90,14 +90,11 @@ def twin_separation(ref, twin, scales):
     """Section separation of ``twin`` from ``ref`` (4-tuples): ``(full, distance)``.
 
     ``full`` is the separation in state units with the angle difference
-    wrapped to (-pi, pi]; ``distance`` its norm in normalised units.
+    wrapped to (-pi, pi]; ``distance`` its norm in the normalised units of ``scales``.
     """
-    f0 = (twin[0] - ref[0]) / scales[0] * scales[0]
-    f1 = (twin[1] - ref[1]) / scales[1] * scales[1]
-    f2 = wrap_angle((twin[2] - ref[2]) / scales[2]) * scales[2]
-    f3 = (twin[3] - ref[3]) / scales[3] * scales[3]
-    u0, u1, u2, u3 = f0 / scales[0], f1 / scales[1], f2 / scales[2], f3 / scales[3]
-    return (f0, f1, f2, f3), math.sqrt(u0 * u0 + u1 * u1 + u2 * u2 + u3 * u3)
+    full = (twin[0] - ref[0], twin[1] - ref[1], wrap_angle(twin[2] - ref[2]), twin[3] - ref[3])
+    u0, u1, u2, u3 = full[0] / scales[0], full[1] / scales[1], full[2] / scales[2], full[3] / scales[3]
+    return full, math.sqrt(u0 * u0 + u1 * u1 + u2 * u2 + u3 * u3)
 
 
 # error_model="numpy": no ZeroDivisionError branch (every denominator is > 0),
