@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import NamedTuple
 
 import numba as nb
@@ -146,46 +145,22 @@ def run_batch(
             np.asarray(states, dtype=np.float64).reshape(n, 4), int(transient_periods), int(record_periods),
             sgn_per_stage=signum == "stage", precision=precision,
         )  # fmt: skip
-    schedule = LaneSchedule(
+    lanes = Lanes(
         transient=np.full(n, int(transient_periods), dtype=np.int64),
         total=np.full(n, int(transient_periods) + int(record_periods), dtype=np.int64),
+        partner=np.full(n, -1, dtype=np.int64),
+        scales=np.ones((4, n)),
+        d0=1.0,
+        rest=0.0,
     )
-    run, _ = run_lanes(
-        params, states, schedule, int(record_periods), dt=dt, signum=signum, chunk=chunk, threads=threads
-    )
+    run, _ = run_lanes(params, states, lanes, int(record_periods), dt=dt, signum=signum, chunk=chunk, threads=threads)
     return run
-
-
-@dataclass
-class LaneSchedule:
-    """What each lane of :func:`run_lanes` integrates (arrays of length n).
-
-    Attributes
-    ----------
-    transient, total : int64[n]
-        Periods before the lane's first record row, and in all.
-    partner : int64[n] or None
-        -1, or the lane this one is a twin of (see :mod:`pendsweep.kernels._batched`).
-    scales : float64[n, 4] or None
-        A twin's section normalisation (``pendsweep.classify.section_scales``).
-    d0 : float
-        A twin's separation after renormalisation [normalised].
-    rest : float
-        A twin stops once its partner's period swing falls below this [rad].
-    """
-
-    transient: np.ndarray
-    total: np.ndarray
-    partner: np.ndarray | None = None
-    scales: np.ndarray | None = None
-    d0: float = 1e-8
-    rest: float = 0.0
 
 
 def run_lanes(
     params: Sequence[ModelParams],
     states: np.ndarray,
-    schedule: LaneSchedule,
+    lanes: Lanes,
     record_periods: int,
     stretch_periods: int = 0,
     *,
@@ -196,7 +171,9 @@ def run_lanes(
 ) -> tuple[BatchRun, np.ndarray]:
     """Integrate lanes with their own schedules (and twins) in one launch of the batched kernel.
 
-    Returns the :class:`BatchRun` (records ``(n, record_periods, 8)``) and the
+    ``lanes`` is the kernel's :class:`~pendsweep.kernels._batched.Lanes` in the
+    order of ``params`` (a twin's ``partner`` indexes that order); lanes are
+    sorted by steps per period here and the indices remapped. Returns the :class:`BatchRun` (records ``(n, record_periods, 8)``) and the
     twins' log-stretch samples ``(n, stretch_periods)``, NaN where none, in
     the order of ``params``. A twin and its partner are kept in one chunk.
     """
@@ -212,16 +189,15 @@ def run_lanes(
     order = np.argsort(steps, kind="stable")  # a twin follows its partner: equal steps keep their order
     position = np.empty(n, dtype=np.int64)
     position[order] = np.arange(n)
-    partner = np.full(n, -1, dtype=np.int64) if schedule.partner is None else np.asarray(schedule.partner)
+    partner = np.asarray(lanes.partner, dtype=np.int64)
     sorted_partner = np.where(partner[order] >= 0, position[np.maximum(partner[order], 0)], -1)
-    scales = np.ones((n, 4)) if schedule.scales is None else np.asarray(schedule.scales, dtype=np.float64)
-    lanes = Lanes(
-        transient=np.ascontiguousarray(schedule.transient[order], dtype=np.int64),
-        total=np.ascontiguousarray(schedule.total[order], dtype=np.int64),
-        partner=np.ascontiguousarray(sorted_partner, dtype=np.int64),
-        scales=np.ascontiguousarray(scales[order].T),
-        d0=float(schedule.d0),
-        rest=float(schedule.rest),
+    lanes = lanes._replace(
+        transient=np.ascontiguousarray(np.asarray(lanes.transient, dtype=np.int64)[order]),
+        total=np.ascontiguousarray(np.asarray(lanes.total, dtype=np.int64)[order]),
+        partner=np.ascontiguousarray(sorted_partner),
+        scales=np.ascontiguousarray(np.asarray(lanes.scales, dtype=np.float64)[:, order]),
+        d0=float(lanes.d0),
+        rest=float(lanes.rest),
     )
     p = np.ascontiguousarray(np.stack([params[i].kernel_array() for i in order], axis=1))
     alpha = np.array([params[i].alpha for i in order])
@@ -300,17 +276,17 @@ def batched_evidence(
     twins[:, 2] += d0 * np.asarray(scales)[:, 2]
     states = np.stack([np.asarray(finals, dtype=np.float64).reshape(m, 4), firsts, twins], axis=1).reshape(3 * m, 4)
     index = np.arange(3 * m)
-    schedule = LaneSchedule(
+    lanes = Lanes(
         transient=np.zeros(3 * m, dtype=np.int64),
         total=np.where(index % 3 == 0, int(extend_periods), int(lyapunov_periods)).astype(np.int64),
         partner=np.where(index % 3 == 2, index - 1, -1).astype(np.int64),
-        scales=np.repeat(np.asarray(scales, dtype=np.float64).reshape(m, 4), 3, axis=0),
-        d0=d0,
-        rest=rest,
+        scales=np.repeat(np.asarray(scales, dtype=np.float64).reshape(m, 4), 3, axis=0).T,
+        d0=float(d0),
+        rest=float(rest),
     )
     lane_params = [q for q in params for _ in range(3)]
     run, stretch = run_lanes(
-        lane_params, states, schedule, int(extend_periods), int(lyapunov_periods),
+        lane_params, states, lanes, int(extend_periods), int(lyapunov_periods),
         dt=dt, signum=signum, threads=threads,
     )  # fmt: skip
     evidence = []
