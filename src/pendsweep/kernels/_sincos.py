@@ -19,12 +19,8 @@ import numba as nb
 import numpy as np
 
 _INV_PIO2 = 6.36619772367581382433e-01
-_PIO2_1 = 1.57079632673412561417e00  # first 33 bits of pi/2
-_PIO2_2 = 6.07710050630396597660e-11  # second 33 bits of pi/2
-_PIO2_2T = 2.02226624879595063154e-21  # pi/2 - (_PIO2_1 + _PIO2_2)
-_PIO2_3 = 2.02226624871116645580e-21  # third 33 bits of pi/2
-_PIO2_3T = 8.47842766036889956997e-32  # pi/2 - (_PIO2_1 + _PIO2_2 + _PIO2_3)
-
+_PIO2_HI = 1.57079632673412561417e00  # first 33 bits of pi/2: k * _PIO2_HI is exact for |k| < 2**20
+_PIO2_LO = 6.07710050650619224932e-11  # pi/2 - _PIO2_HI, rounded to double (error < 7e-27)
 _S1 = -1.66666666666666324348e-01
 _S2 = 8.33333333332248946124e-03
 _S3 = -1.98412698298579493134e-04
@@ -41,43 +37,14 @@ _C6 = -1.13596475577881948265e-11
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
-def _kernel_sin(x, y):
-    """sin(x + y) for |x| <= pi/4, |y| << ulp(x) (fdlibm __kernel_sin)."""
-    z = x * x
-    v = z * x
-    r = _S2 + z * (_S3 + z * (_S4 + z * (_S5 + z * _S6)))
-    return x - ((z * (0.5 * y - v * r) - y) - v * _S1)
-
-
-@nb.njit(cache=True, nogil=True, inline="always")
-def _kernel_cos(x, y):
-    """cos(x + y) for |x| <= pi/4, |y| << ulp(x) (fdlibm __kernel_cos)."""
-    z = x * x
-    r = z * (_C1 + z * (_C2 + z * (_C3 + z * (_C4 + z * (_C5 + z * _C6)))))
-    hz = 0.5 * z
-    w = 1.0 - hz
-    return w + (((1.0 - w) - hz) + (z * r - x * y))
-
-
-@nb.njit(cache=True, nogil=True, inline="always")
 def sincos_poly(x):
     """``(sin x, cos x)`` in float64, branch-free; see the module docstring for accuracy."""
-    fn = np.floor(x * _INV_PIO2 + 0.5)
-    # Three rounds of Cody-Waite: each product fn * _PIO2_i is exact for |fn| < 2**20.
-    r = x - fn * _PIO2_1
-    t = r
-    w = fn * _PIO2_2
-    r = t - w
-    w = fn * _PIO2_2T - ((t - r) - w)
-    t = r
-    w = fn * _PIO2_3
-    r = t - w
-    w = fn * _PIO2_3T - ((t - r) - w)
-    r0 = r - w
-    r1 = (r - r0) - w
-    s = _kernel_sin(r0, r1)
-    c = _kernel_cos(r0, r1)
-    q = fn - 4.0 * np.floor(0.25 * fn)  # quadrant 0, 1, 2 or 3 (exact)
+    k = np.floor(x * _INV_PIO2 + 0.5)
+    r = (x - k * _PIO2_HI) - k * _PIO2_LO  # the first difference is exact (Sterbenz)
+    z = r * r
+    s = r + (z * r) * (_S1 + z * (_S2 + z * (_S3 + z * (_S4 + z * (_S5 + z * _S6)))))
+    c = (1.0 - 0.5 * z) + (z * z) * (_C1 + z * (_C2 + z * (_C3 + z * (_C4 + z * (_C5 + z * _C6)))))
+    q = k - 4.0 * np.floor(0.25 * k)  # quadrant 0, 1, 2 or 3 (exact)
     sin_x = s if q == 0.0 else (c if q == 1.0 else (-s if q == 2.0 else -c))
     cos_x = c if q == 0.0 else (-s if q == 1.0 else (-c if q == 2.0 else s))
     return sin_x, cos_x
