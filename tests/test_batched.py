@@ -12,6 +12,7 @@ from pendsweep.classify import classify_run
 from pendsweep.errors import ConfigError
 from pendsweep.kernels import RECORD_COLUMNS, STATUS_DIVERGED, STATUS_OK
 from pendsweep.kernels._batched import _N_CONST, _step_chunk
+from pendsweep.kernels._layout import SECTION_COLUMNS
 from pendsweep.kernels._sincos import sincos_poly
 from pendsweep.params import TABLE_IV
 from pendsweep.status import Status
@@ -295,3 +296,27 @@ def test_a_point_does_not_depend_on_its_chunk_neighbours():
         alone = run_batch([params[i]], states[i : i + 1], 40, 6)
         np.testing.assert_array_equal(alone.records[0], together.records[i])
         np.testing.assert_array_equal(alone.states[0], together.states[i])
+
+
+@pytest.mark.parametrize("signum", ["step", "stage"])
+def test_fast_arithmetic_stays_far_below_rk4_truncation_error(signum):
+    """Polynomial sin/cos, reciprocals and FMA against the exact-libm kernel, 120 periods.
+
+    On non-chaotic points the batched kernel's departure from the scalar
+    (libm, no contraction) kernel is compared with RK4's own error at
+    dt = 1 ms, estimated by the same scalar kernel at dt = 0.5 ms. Measured:
+    the ratio is 1e-11 to 1e-9 (departures of 1e-15 to 1e-14 against
+    truncation errors of 3e-6 to 2e-4 in the records).
+    """
+    params = [TABLE_IV.replace(alpha=a) for a in (5.0, 26.0)] + [TABLE_IV.replace(alpha=15.0, fe=2.4)]
+    states = np.tile([0.0, 0.0, 0.1, 0.0], (len(params), 1))
+    fast = run_batch(params, states, 100, 20, signum=signum)
+    exact, fine = EmulatedBackend(signum=signum), EmulatedBackend(dt=5e-4, signum=signum)
+    for i, p in enumerate(params):
+        reference = exact.run_point(p, states[i], 100, 20)
+        assert classify_run(exact, p, reference).label in {"semi-trivial", "periodic-2"}
+        departure = np.abs(fast.records[i][:, SECTION_COLUMNS] - reference.records[:, SECTION_COLUMNS]).max()
+        halved = fine.run_point(p, states[i], 100, 20).records[:, SECTION_COLUMNS]
+        truncation = np.abs(halved - reference.records[:, SECTION_COLUMNS]).max()
+        assert truncation > 1e-7, "the dt/2 run must resolve RK4's error"
+        assert departure <= 1e-6 * truncation, f"{p.alpha} N: {departure:.3g} against {truncation:.3g}"
