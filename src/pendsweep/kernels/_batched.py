@@ -9,7 +9,9 @@ chunk into AVX-512 code; ``sin``/``cos`` come from the branch-free
 times is read from the scalar kernel's half-step table of the lane's own
 steps per period, so lanes with different ``fe`` share a chunk and **a
 lane's result never depends on the other lanes of its chunk** (which makes
-a resumed sweep bit-identical whatever was done before). A lane that has
+a resumed sweep bit-identical whatever was done before; chunks are padded
+to whole vector groups so that every lane runs the same FMA-contracted vector
+code). A lane that has
 finished or diverged is frozen by a select. Period ends are rare events
 handled by a scalar pass that fills the same records as the scalar kernel.
 
@@ -281,7 +283,9 @@ def batched_periods(state, p, alpha, fe, steps, lanes, sgn_per_stage, bounds, ou
     Lane ``i`` is integrated as ``emulated_periods`` would with
     ``state[:, i]``, ``p[:, i]``, ``alpha[i]``, ``fe[i]``, ``steps[i]`` and
     ``lanes.transient[i]``, except that sin/cos come from
-    :func:`sincos_poly` (<= 1.5 ulp) and divisions become reciprocals.
+    :func:`sincos_poly` (<= 0.8 * 2**-52 absolute), divisions become reciprocals
+    and products and sums contract to FMA (tests bound the departure from the
+    exact kernel at 1e-6 of RK4's own truncation error over 120 periods).
 
     Parameters
     ----------
