@@ -62,7 +62,7 @@ from .kernels._layout import REC_THETA_ABSMAX, REC_THETADOT_SEC, REC_Y_SEC
 from .params import ModelParams
 from .status import Status
 
-if TYPE_CHECKING:  # pandas costs 0.3 s of start-up: functions that build frames import it themselves
+if TYPE_CHECKING:  # pandas (0.3 s) is imported by the functions that build frames, not by importing this module
     import pandas as pd
 
 #: Forcing periods integrated between settling checks.

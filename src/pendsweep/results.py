@@ -33,7 +33,7 @@ import pyarrow.parquet as pq
 
 from .errors import ResultsError
 
-if TYPE_CHECKING:  # rows are pyarrow Tables here; pandas (0.3 s of start-up) only where frames are asked for
+if TYPE_CHECKING:  # rows are pyarrow Tables here; frames only where they are asked for
     import pandas as pd
 
 METADATA_KEY = b"pendsweep"

@@ -191,8 +191,8 @@ def run_scan(
         (None: no limit).
     as_frame : bool
         True: a pandas DataFrame in the scan's order (:meth:`Scan.order`).
-        False: a pyarrow Table sorted by the scan's row columns, without
-        importing pandas (0.3 s of a command's start-up).
+        False: a pyarrow Table sorted by the scan's row columns (no frame is
+        built; the rows stay in the columns the scan made them in).
 
     Raises
     ------

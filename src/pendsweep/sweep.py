@@ -50,7 +50,7 @@ from .results import run_metadata
 from .scan import DEFAULT_MAX_WORK, Finished, UnitResult, Work, run_scan, sample_indices
 from .status import Status
 
-if TYPE_CHECKING:  # frames only at the API boundary: pandas costs 0.3 s of a command's start-up
+if TYPE_CHECKING:  # rows are built as pyarrow columns; frames only at the API boundary
     import pandas as pd
 
 MODES = ("continue", "fresh", "multistart")
@@ -501,8 +501,8 @@ def run_sweep(
         Refuse the sweep (``ConfigError``) when its estimate (:func:`sweep_work`)
         exceeds this many integration steps; None: no limit.
     as_frame : bool
-        False: return a pyarrow Table (same rows and order) without importing
-        pandas, as the command line does.
+        False: return a pyarrow Table (same rows and order) instead of a
+        DataFrame, as the command line does.
 
     Returns
     -------

@@ -49,7 +49,7 @@ from ..errors import ConfigError
 from ..params import ModelParams
 from ..status import Status
 
-if TYPE_CHECKING:  # pandas costs 0.3 s of start-up: functions that build frames import it themselves
+if TYPE_CHECKING:  # pandas (0.3 s) is imported by the functions that build frames, not by importing this module
     import pandas as pd
 
 

@@ -74,7 +74,7 @@ from ..params import ENCODER_RESOLUTION, ModelParams
 from ..status import Status
 from ._base import BackendBase, PointRun, register
 
-if TYPE_CHECKING:  # pandas costs 0.3 s of start-up: functions that build frames import it themselves
+if TYPE_CHECKING:  # pandas (0.3 s) is imported by the functions that build frames, not by importing this module
     import pandas as pd
 
 #: Instability test: rms of x'' at the controller rate above this [m/s^2] ...
