@@ -70,6 +70,17 @@ def test_long_form_schema_and_row_count():
     assert down.groupby("point").size().to_dict() == {0: 3, 1: 3, 2: 3}
 
 
+def test_table_and_frame_results_agree_with_and_without_a_file(tmp_path):
+    """``as_frame=False`` (what the CLI uses) gives the DataFrame's rows, in its order, as a pyarrow Table."""
+    config = SweepConfig("alpha", (1.0, 18.0, 30.0), direction="both", **SHORT)
+    frame = run_sweep(config)
+    for output in (None, tmp_path / "t.parquet"):
+        table = run_sweep(config, output, as_frame=False)
+        assert table.column_names == list(frame.columns)
+        pd.testing.assert_frame_equal(table.to_pandas(), frame)
+    pd.testing.assert_frame_equal(read_results(tmp_path / "t.parquet")[0], frame)
+
+
 def test_continue_carries_state_and_down_branch_starts_at_the_top(emulated):
     config = SweepConfig("alpha", (20.0, 25.0), direction="both", **SHORT)
     df = run_sweep(config)
