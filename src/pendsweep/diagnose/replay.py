@@ -59,6 +59,9 @@ MOTION_WINDOW = 0.25
 MAX_STEP = 1e-3
 #: Savitzky-Golay window for state estimates [s] (cubic).
 SMOOTH_WINDOW = 0.05
+#: Leading part of a substructured record that only serves as command history [s]: the
+#: actuator's position there follows commands sent before the record began.
+COMMAND_HISTORY = 0.05
 NUISANCE = ("theta_init", "thetadot_init")
 
 
@@ -121,7 +124,10 @@ class Replay:
         self.scale = {c: float(np.std(self.meas[c])) for c in self.channels}
         self.noise = {c: noise_std(self.meas[c]) for c in self.channels}
         self.folds = int(folds)
+        # Substructured: the first samples replay commands from before the record (unknown).
+        self.start = int(math.ceil(COMMAND_HISTORY / self.dt)) if self.kind == "substructured" else 0
         self.moving = self._moving()
+        self.moving[: self.start] = False
         self.eval_idx = np.flatnonzero(self.moving)
         n_blocks = self.folds * BLOCKS_PER_FOLD
         if len(self.eval_idx) < 10 * n_blocks:
@@ -141,7 +147,7 @@ class Replay:
             if not (math.isfinite(self.horizon) and self.horizon > 20 * self.dt):
                 raise ConfigError(f"horizon = {horizon!r} s must exceed 20 samples ({20 * self.dt:g} s)")
             h = int(round(self.horizon / self.dt))
-            self.segments = _cut(0, self.n, h)
+            self.segments = _cut(self.start, self.n, h)
             starts = np.array([s for s, _ in self.segments])
             # y* of a substructured test is the command (no prediction).
             y = est["y_cmd" if self.kind == "substructured" else "y"]
@@ -151,6 +157,8 @@ class Replay:
             if self.kind == "substructured":
                 self.command = np.ascontiguousarray(record.channel("y_cmd"))
                 self.command_slope = np.ascontiguousarray(est["y_cmd"][1])
+                # The load-cell reading at a segment's start is fed back over its first tick.
+                self.force_start = record.channel("Fs")[starts] if "Fs" in record.data else np.full(len(starts), np.nan)
             self.force = record.channel("Fe")
             self.force_half = midpoint_values(self.force)
             self.initial_guess = {}
@@ -191,6 +199,7 @@ class Replay:
 
     def _loop(self, v: dict[str, float], p: np.ndarray, theta_offset: float, stop: int) -> dict[str, np.ndarray]:
         sim = np.empty((stop, 4))
+        sim[: self.start] = np.nan  # command history, not replayed
         nom = self.nominal
         # M1, C1 are the numerical model's code values: M and C move them, M2 and C2 do not.
         M1 = v["M"] - nom["M2"]
@@ -221,6 +230,7 @@ class Replay:
                 cmdd,
                 i0,
                 sim[i0 : min(i1, stop)],
+                self.force_start[k],
             )
         return {"y": sim[:, 0], "theta": sim[:, 1] + theta_offset, "Fs": sim[:, 2], "y_cmd": sim[:, 3]}
 
