@@ -157,6 +157,10 @@ class Replay:
             if self.kind == "substructured":
                 self.command = np.ascontiguousarray(record.channel("y_cmd"))
                 self.command_slope = np.ascontiguousarray(est["y_cmd"][1])
+                # The command is the controller's own exact number: a segment's y* starts from it, not
+                # from its smoothed estimate, or the delayed command jumps where the measured history
+                # hands over to the replayed commands (a force spike of ms * jump / dt^2 there).
+                self.states0[:, 0] = self.command[starts]
                 # The load-cell reading at a segment's start is fed back over its first tick.
                 self.force_start = record.channel("Fs")[starts] if "Fs" in record.data else np.full(len(starts), np.nan)
             self.force = record.channel("Fe")
