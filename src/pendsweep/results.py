@@ -26,13 +26,15 @@ import tempfile
 import time
 from collections.abc import Callable, Iterable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
 from .errors import ResultsError
+
+if TYPE_CHECKING:  # rows are pyarrow Tables here; pandas (0.3 s of start-up) only where frames are asked for
+    import pandas as pd
 
 METADATA_KEY = b"pendsweep"
 #: The run's metadata inside ``<output>.parts/`` (written once; parts carry only its hash).
@@ -112,8 +114,26 @@ def atomic_write_table(table: pa.Table, path: Path) -> None:
     _atomic_write(path, lambda fh: pq.write_table(table, fh))
 
 
-def with_metadata(df: pd.DataFrame, metadata: dict[str, Any]) -> pa.Table:
-    table = pa.Table.from_pandas(df, preserve_index=False)
+def as_table(rows: pa.Table | pd.DataFrame) -> pa.Table:
+    """Rows as a pyarrow Table (a DataFrame is converted, its index dropped)."""
+    if isinstance(rows, pa.Table):
+        return rows
+    return pa.Table.from_pandas(rows, preserve_index=False).replace_schema_metadata(None)
+
+
+def concat_rows(tables: list[pa.Table]) -> pa.Table:
+    """Tables concatenated; types unified (all-null or string columns from pandas frames) (empty: no columns)."""
+    tables = [t for t in tables if t.num_columns]
+    return pa.concat_tables(tables, promote_options="permissive") if tables else pa.table({})
+
+
+def sort_rows(table: pa.Table, columns: list[str]) -> pa.Table:
+    """``table`` stably sorted by ``columns`` (ascending)."""
+    return table.sort_by([(c, "ascending") for c in columns]) if table.num_rows else table
+
+
+def with_metadata(rows: pa.Table | pd.DataFrame, metadata: dict[str, Any]) -> pa.Table:
+    table = as_table(rows)
     meta = dict(table.schema.metadata or {})
     meta[METADATA_KEY] = json.dumps(metadata, sort_keys=True).encode()
     return table.replace_schema_metadata(meta)
@@ -289,7 +309,7 @@ class ResultStore:
         self.parts = self.path.with_name(self.path.name + ".parts")
         self.flush_points = flush_points
         self.flush_seconds = flush_seconds
-        self._buffer: list[pd.DataFrame] = []
+        self._buffer: list[pa.Table] = []
         self._buffer_states: dict[str, list[float]] = {}
         self._last_flush = time.monotonic()
         check_writable(self.path)
@@ -338,7 +358,7 @@ class ResultStore:
         return self.path.exists()
 
     # -- resume ---------------------------------------------------------------
-    def done(self) -> tuple[pd.DataFrame, dict[str, list[float]]]:
+    def done(self) -> tuple[pa.Table, dict[str, list[float]]]:
         """Rows and final states (per unit key) already persisted (empty on a fresh start).
 
         Every part's configuration hash is checked (a mismatch is an error).
@@ -347,9 +367,8 @@ class ResultStore:
         run recomputes them.
         """
         if self.path.exists():
-            df, meta = read_results(self.path)
-            return df, meta.get("final_states", {})
-        frames, states = [], {}
+            return pq.read_table(self.path), read_metadata(self.path).get("final_states", {})
+        tables, states = [], {}
         for f in sorted(self.parts.glob("part-*.parquet")):
             try:
                 table = pq.read_table(f)
@@ -362,18 +381,21 @@ class ResultStore:
                 os.replace(f, f.with_name(f.name + ".corrupt"))
                 continue
             self._check_hash(meta.get("config_hash"), f)
-            frames.append(table.to_pandas())
+            tables.append(table.replace_schema_metadata(None))
             states.update(part_states)
-        df = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
-        if not df.empty:
-            # A part may repeat a unit only if a crash hit between two renames; keep one copy.
-            df = df.drop_duplicates(subset=self.row_columns, keep="last")
-        return df, states
+        return self._unique(concat_rows(tables)), states
+
+    def _unique(self, table: pa.Table) -> pa.Table:
+        """One copy of each row key: a part repeats a unit only if a crash hit between two renames."""
+        if not table.num_rows or table.group_by(self.row_columns).aggregate([]).num_rows == table.num_rows:
+            return table
+        df = table.to_pandas().drop_duplicates(subset=self.row_columns, keep="last")
+        return pa.Table.from_pandas(df, schema=table.schema, preserve_index=False)
 
     # -- writing --------------------------------------------------------------
-    def add(self, rows: pd.DataFrame, key: str, final_state: list[float]) -> None:
+    def add(self, rows: pa.Table | pd.DataFrame, key: str, final_state: list[float]) -> None:
         """Buffer one finished unit of work and persist when the buffer is due."""
-        self._buffer.append(rows)
+        self._buffer.append(as_table(rows))
         self._buffer_states[key] = final_state
         due = time.monotonic() - self._last_flush >= self.flush_seconds
         if len(self._buffer) >= self.flush_points or due:
@@ -382,24 +404,26 @@ class ResultStore:
     def flush(self) -> None:
         if not self._buffer:
             return
-        df = pd.concat(self._buffer, ignore_index=True)
         meta = {"config_hash": self.config_hash, "final_states": self._buffer_states}
         part = self.parts / f"part-{self._part_counter:06d}-{os.getpid()}.parquet"
-        atomic_write_table(with_metadata(df, meta), part)
+        atomic_write_table(with_metadata(concat_rows(self._buffer), meta), part)
         self._part_counter += 1
         self._buffer, self._buffer_states = [], {}
         self._last_flush = time.monotonic()
 
-    def finalize(self) -> pd.DataFrame:
-        """Merge parts into the final file atomically, remove the parts and release the lock."""
+    def finalize(self) -> pa.Table:
+        """Merge parts into the final file atomically, remove the parts and release the lock.
+
+        Returns the rows, sorted by the row columns.
+        """
         self.flush()
-        df, states = self.done()
-        df = df.sort_values(self.row_columns, kind="stable").reset_index(drop=True)
+        table, states = self.done()
+        table = sort_rows(table, self.row_columns)
         meta = dict(self.metadata, final_states=states, completed=time.strftime("%Y-%m-%dT%H:%M:%S%z"))
-        atomic_write_table(with_metadata(df, meta), self.path)
+        atomic_write_table(with_metadata(table, meta), self.path)
         shutil.rmtree(self.parts, ignore_errors=True)
         self.close()
-        return df
+        return table
 
     def close(self) -> None:
         """Release the lock (idempotent). Unflushed units are dropped; parts stay for a later resume."""

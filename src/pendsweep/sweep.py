@@ -33,10 +33,10 @@ import math
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
+import pyarrow as pa
 
 from .backends import BACKENDS, PointRun, make_backend
 from .basins import BackendMap, EmulatedMap, settle_runs
@@ -49,6 +49,9 @@ from .params import ENCODER_RESOLUTION, PARAM_SPECS, ModelParams, check_value
 from .results import run_metadata
 from .scan import DEFAULT_MAX_WORK, Finished, UnitResult, Work, run_scan, sample_indices
 from .status import Status
+
+if TYPE_CHECKING:  # frames only at the API boundary: pandas costs 0.3 s of a command's start-up
+    import pandas as pd
 
 MODES = ("continue", "fresh", "multistart")
 TRANSIENTS = ("fixed", "auto")
@@ -276,13 +279,13 @@ class PointResult:
         return unit_key(self.direction, self.point, self.start)
 
 
-def result_rows(config: SweepConfig, r: PointResult) -> pd.DataFrame:
+def result_rows(config: SweepConfig, r: PointResult) -> pa.Table:
     """Long-form rows of one unit: one row per recorded period, built from whole columns."""
     records = r.run.records
     n = records.shape[0]
     columns: dict[str, Any] = {
         config.parameter: np.full(n, r.value),
-        "direction": np.full(n, r.direction, dtype=object),
+        "direction": pa.array([r.direction] * n, pa.string()),
         "point": np.full(n, r.point, dtype=np.int64),
         "start": np.full(n, r.start, dtype=np.int64),
         "period": np.arange(n, dtype=np.int64),
@@ -291,12 +294,12 @@ def result_rows(config: SweepConfig, r: PointResult) -> pd.DataFrame:
         columns[name] = records[:, j]
     columns["rotations"] = np.nan_to_num(records[:, RECORD_INDEX["rotations"]]).astype(np.int64)
     columns["kicked"] = np.full(n, r.kicked)
-    columns["status"] = np.full(n, r.run.status.value, dtype=object)
-    columns["motion"] = np.full(n, r.motion, dtype=object)
+    columns["status"] = pa.array([r.run.status.value] * n, pa.string())
+    columns["motion"] = pa.array([r.motion] * n, pa.string())
     if config.transient == "auto":
         columns["settled"] = np.full(n, r.settled)
         columns["transient_periods_used"] = np.full(n, r.transient_used, dtype=np.int64)
-    return pd.DataFrame(columns)
+    return pa.table(columns)
 
 
 def run_units(config: SweepConfig, backend, params: list, states: np.ndarray, threads=None, one_by_one=False):
@@ -473,7 +476,8 @@ def run_sweep(
     executor: Executor | None = None,
     task_points: int = 256,
     max_work: float | None = DEFAULT_MAX_WORK,
-) -> pd.DataFrame:
+    as_frame: bool = True,
+) -> pd.DataFrame | pa.Table:
     """Run (or resume) a sweep and return its long-form results.
 
     Parameters
@@ -496,6 +500,9 @@ def run_sweep(
     max_work : float or None
         Refuse the sweep (``ConfigError``) when its estimate (:func:`sweep_work`)
         exceeds this many integration steps; None: no limit.
+    as_frame : bool
+        False: return a pyarrow Table (same rows and order) without importing
+        pandas, as the command line does.
 
     Returns
     -------
@@ -511,13 +518,15 @@ def run_sweep(
         overwrite=overwrite,
         executor=executor,
         max_work=max_work,
+        as_frame=as_frame,
     )
 
 
-def _resume_info(done_df: pd.DataFrame, states: dict[str, list[float]], threshold: float) -> dict[str, dict]:
+def _resume_info(done_rows: pa.Table, states: dict[str, list[float]], threshold: float) -> dict[str, dict]:
     """Per finished unit: its final state, whether it ended OK and at rest."""
-    if done_df.empty:
+    if not done_rows.num_rows:
         return {}
+    done_df = done_rows.to_pandas()
     info = {}
     for (d, p, s), g in done_df.groupby(["direction", "point", "start"], sort=False):
         key = unit_key(d, p, s)

@@ -41,14 +41,16 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, ClassVar, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
-import pandas as pd
 
 from ..errors import ConfigError
 from ..params import ModelParams
 from ..status import Status
+
+if TYPE_CHECKING:  # pandas costs 0.3 s of start-up: functions that build frames import it themselves
+    import pandas as pd
 
 
 @dataclass

@@ -21,7 +21,7 @@ import numpy as np
 from ..errors import ConfigError
 from ..gpu import check_device, run_batch_cuda
 from ..kernels import N_RECORD_COLUMNS, STATUS_OK
-from ..kernels._batched import Lanes, batched_periods
+from ..kernels._batched import LANE_GROUP, Lanes, batched_periods
 from ..kernels._layout import SECTION_COLUMNS
 from ..params import ModelParams
 from ._base import steps_per_period
@@ -208,9 +208,13 @@ def run_lanes(
     out_stretch = np.full_like(stretch, np.nan)
     st = np.zeros(n, dtype=np.int64)
     dn = np.zeros(n, dtype=np.int64)
-    bounds = keep_twins_together(chunk_bounds(sorted_steps, int(chunk)), sorted_partner)
     with _LAUNCH:
         previous = nb.get_num_threads()
+        # A small launch is still split over the threads, in whole vector groups
+        # (each chunk is padded to one): 27 lanes on 2 threads run as 16 + 11, not 27.
+        per_thread = -(-n // max(1, min(int(threads or previous), nb.config.NUMBA_NUM_THREADS)))
+        chunk = min(int(chunk), max(LANE_GROUP, -(-per_thread // LANE_GROUP) * LANE_GROUP))
+        bounds = keep_twins_together(chunk_bounds(sorted_steps, chunk), sorted_partner)
         # No more threads than chunks: an idle thread only waits at the barrier.
         nb.set_num_threads(max(1, min(int(threads or previous), nb.config.NUMBA_NUM_THREADS, len(bounds) - 1)))
         # Chunk costs differ (lanes finish or diverge early, steps differ): threads take

@@ -209,6 +209,73 @@ def _scaling(quick: bool) -> dict:
     return out
 
 
+_HALF_GRID_SCRIPT = """
+import sys, time
+import numpy as np
+from pendsweep.backends._batch import run_batch
+from pendsweep.bench.throughput import fig10a_points
+n_omega, n_alpha, periods, half = (int(a) for a in sys.argv[1:5])
+grid = fig10a_points(n_omega, n_alpha)[half::2]
+states = np.tile([0.0, 0.0, 0.1, 0.0], (len(grid), 1))
+run_batch(grid[:16], states[:16], 0, 1, threads=1)  # load the kernel before the clock starts
+print("ready", flush=True)
+sys.stdin.readline()
+t0 = time.perf_counter()
+run_batch(grid, states, 0, periods, threads=1)
+print(time.perf_counter() - t0, flush=True)
+"""
+
+
+def _process_ceiling(n_omega: int, n_alpha: int, periods: int) -> float:
+    """Wall time [s] of the grid split over two single-thread processes started together.
+
+    The peer of 2 numba threads with nothing shared: what the machine itself
+    gives two cores running this kernel (caches, memory, frequency, and on a
+    VM whatever else the host shares).
+    """
+    import subprocess
+
+    argv = [sys.executable, "-c", _HALF_GRID_SCRIPT, str(n_omega), str(n_alpha), str(periods)]
+    procs = [
+        subprocess.Popen([*argv, str(h)], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True) for h in (0, 1)
+    ]
+    try:
+        for p in procs:
+            if p.stdout.readline().strip() != "ready":
+                raise RuntimeError("a half-grid process failed to start")
+        for p in procs:
+            p.stdin.write("go\n")
+            p.stdin.flush()
+        return max(float(p.stdout.readline()) for p in procs)
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                p.kill()
+            p.wait()
+
+
+def _grid_scaling(quick: bool) -> dict:
+    """The Fig. 10(a) grid on 1 and 2 threads, against two independent processes."""
+    n_omega, n_alpha, periods = (10, 10, 4) if quick else (100, 100, 10)
+    grid = fig10a_points(n_omega, n_alpha)
+    states = np.tile([0.0, 0.0, 0.1, 0.0], (len(grid), 1))
+    run_batch(grid[:16], states[:16], 0, 1)
+    one, _ = best_times(lambda: run_batch(grid, states, 0, periods, threads=1), 2)
+    two, _ = best_times(lambda: run_batch(grid, states, 0, periods, threads=2), 2)
+    split = min(_process_ceiling(n_omega, n_alpha, periods) for _ in range(2))
+    return {
+        "points": len(grid),
+        "periods": periods,
+        "seconds_1_thread": one,
+        "seconds_2_threads": two,
+        "seconds_2_processes": split,
+        "speedup_2_threads": one / two,
+        "speedup_2_processes": one / split,
+        "threads_over_processes": split / two,
+        "load_average": os.getloadavg()[0],
+    }
+
+
 def _plot(scaling: dict, path: Path) -> None:
     import matplotlib
 
@@ -226,15 +293,19 @@ def _plot(scaling: dict, path: Path) -> None:
     axes[0].set_title("Batched kernel: throughput vs batch size")
     axes[0].grid(True, which="both", alpha=0.3)
     axes[0].legend()
-    threads = [int(k.rsplit("_", 1)[1]) for k in keys]
-    largest = [scaling[k][-1] for k in keys]
-    axes[1].bar([str(t) for t in threads], largest, color="C2")
-    if threads:
-        axes[1].plot([str(t) for t in threads], [largest[0] * t for t in threads], "k--", label="linear scaling")
-        axes[1].legend()
-    axes[1].set_xlabel("numba threads")
-    axes[1].set_ylabel(f"point-steps per second (batch {sizes[-1]})")
-    axes[1].set_title(f"Throughput vs threads (load average {scaling['load_average']:.1f} on {os.cpu_count()} cores)")
+    grid = scaling.get("grid")
+    if grid:  # speedups on the Fig. 10(a) grid, with what two independent processes get
+        labels = ["1 thread", "2 threads", "2 processes\n(no sharing)"]
+        speedups = [1.0, grid["speedup_2_threads"], grid["speedup_2_processes"]]
+        axes[1].bar(labels, speedups, color=["C0", "C1", "C7"])
+        axes[1].axhline(2.0, color="k", ls="--", label="linear scaling")
+        for x, v in enumerate(speedups):
+            axes[1].text(x, v + 0.03, f"{v:.2f}x", ha="center")
+        axes[1].set_ylabel("speedup over 1 thread")
+        axes[1].set_title(
+            f"{grid['points']:,} points (load average {grid['load_average']:.1f}, {os.cpu_count()} cores)"
+        )
+        axes[1].legend(loc="lower right")
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=150)
@@ -356,6 +427,8 @@ def bench_throughput(quick: bool) -> dict:
     }
 
     scaling = _scaling(quick)
+    if nb.config.NUMBA_NUM_THREADS >= 2:
+        scaling["grid"] = _grid_scaling(quick)
     result["scaling"] = scaling
     _plot(scaling, FIGURE)
     result["figure"] = str(FIGURE)

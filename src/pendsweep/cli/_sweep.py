@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import collections
 import json
 import math
 import sys
@@ -393,19 +394,37 @@ def execute(
     t0 = time.perf_counter()
     runner = make_executor(executor, scheduler)
     try:
-        df = run_sweep(
-            config, output, n_jobs=jobs, progress=progress, overwrite=overwrite, executor=runner, max_work=work_limit
+        rows = run_sweep(
+            config,
+            output,
+            n_jobs=jobs,
+            progress=progress,
+            overwrite=overwrite,
+            executor=runner,
+            max_work=work_limit,
+            as_frame=False,
         )
     finally:
         runner.close()
     elapsed = time.perf_counter() - t0
-    units = df.groupby(["direction", "point", "start"])["status"].first()
-    counts = ", ".join(f"{n} {s}" for s, n in units.value_counts().items())
-    click.echo(f"{len(units)} points ({counts}) in {elapsed:.2f} s -> {output}")
+    click.echo(f"{unit_summary(rows)} in {elapsed:.2f} s -> {output}")
     if plot_path is not None:
         from ..plotting import plot_files
 
         click.echo(f"plot -> {plot_files([output], plot_path, title=title)}")
+
+
+def unit_summary(rows) -> str:
+    """``"91 points (80 ok, 11 diverged)"``: units (direction, point, start) by status, most common first.
+
+    ``rows`` is a sweep's pyarrow Table; a unit's status is the same on all its rows.
+    """
+    if not rows.num_rows:
+        return "0 points ()"
+    first = rows["period"].to_numpy() == 0
+    statuses = collections.Counter(rows["status"].to_numpy(zero_copy_only=False)[first].tolist())
+    counts = ", ".join(f"{n} {s}" for s, n in statuses.most_common())
+    return f"{int(first.sum())} points ({counts})"
 
 
 def _run_options(kw: dict[str, Any]) -> dict[str, Any]:

@@ -9,7 +9,9 @@ chunk into AVX-512 code; ``sin``/``cos`` come from the branch-free
 times is read from the scalar kernel's half-step table of the lane's own
 steps per period, so lanes with different ``fe`` share a chunk and **a
 lane's result never depends on the other lanes of its chunk** (which makes
-a resumed sweep bit-identical whatever was done before). A lane that has
+a resumed sweep bit-identical whatever was done before; chunks are padded
+to whole vector groups so that every lane runs the same FMA-contracted vector
+code). A lane that has
 finished or diverged is frozen by a select. Period ends are rare events
 handled by a scalar pass that fills the same records as the scalar kernel.
 
@@ -52,6 +54,10 @@ from ._records import TWO_PI, fold_extremes, record_close, wrap_angle, wrap_inde
 # Rows of a chunk's per-lane constant table: the parameter vector, then these.
 _ALPHA, _TABLE, _STEPS, _DT, _INV_L, _INV_M = range(N_PARAMS, N_PARAMS + 6)
 _N_CONST = N_PARAMS + 6
+
+#: Lanes per vector group: chunks are padded with idle lanes to a multiple of
+#: this (8 float64 lanes fill an AVX-512 register; a multiple of AVX2's 4).
+LANE_GROUP = 16
 
 
 class Lanes(NamedTuple):
@@ -99,12 +105,14 @@ def twin_separation(ref, twin, scales):
 
 # error_model="numpy": no ZeroDivisionError branch (every denominator is > 0),
 # which would keep LLVM from vectorising the loop. The loop writes only six
-# arrays: more would exceed LLVM's budget of runtime alias checks. No
-# fastmath, not even FMA contraction: LLVM contracts the vector body and the
-# scalar remainder loop differently, which made a lane's last bits (and, on a
-# chaotic orbit, its whole trajectory) depend on its position in the chunk;
-# contraction was worth about 12 % of the kernel's time.
-@nb.njit(cache=True, nogil=True, error_model="numpy")
+# arrays: more would exceed LLVM's budget of runtime alias checks. FMA
+# contraction (about a third of the kernel's time, with the short range
+# reduction of sincos_poly) is safe only because every chunk is padded to a
+# whole number of vector groups (LANE_GROUP): LLVM contracts the vector body
+# and its scalar remainder loop differently, and a lane that ran in the
+# remainder would differ in its last bits (on a chaotic orbit, in its whole
+# trajectory) from the same lane in the vector body.
+@nb.njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
 def _step_chunk(y, yd, th, thd, peak, yabs, live, const, forcing, uniform, u0, u1, u2, sgn_per_stage):
     """Advance every live lane of a chunk by one RK4 step.
 
@@ -218,12 +226,19 @@ def _close_period(i, y, yd, th, thd, peak, yabs, live, swing, period, lanes, lo,
 def _integrate_chunk(state, p, alpha, fe, steps, lanes, lo, sgn_per_stage, out, status, done, stretch):
     """Integrate one chunk (arrays are the chunk's slices, ``lanes`` global); see :func:`batched_periods`."""
     n = state.shape[1]
-    y, yd, th, thd = state[0].copy(), state[1].copy(), state[2].copy(), state[3].copy()
-    peak, yabs, swing = np.zeros(n), np.zeros(n), np.zeros(n)
-    live = np.ones(n)
+    # Lanes n..width-1 are idle padding (live = 0, lane 0's constants), so the
+    # vectorised step never falls back to its scalar remainder loop.
+    width = -(-n // LANE_GROUP) * LANE_GROUP
+    y, yd, th, thd = np.zeros(width), np.zeros(width), np.zeros(width), np.zeros(width)
+    peak, yabs, live = np.zeros(width), np.zeros(width), np.zeros(width)
+    y[:n], yd[:n], th[:n], thd[:n] = state[0], state[1], state[2], state[3]
+    swing = np.zeros(n)
     period = np.zeros(n, dtype=np.int64)
     period_end = steps.copy()  # step count at the end of each lane's current period
-    const, tables = _chunk_constants(p, alpha, fe, steps)
+    const = np.empty((_N_CONST, width))
+    const[:, :n], tables = _chunk_constants(p, alpha, fe, steps)
+    for i in range(n, width):
+        const[:, i] = const[:, 0]
     max_steps = 0
     for i in range(n):
         _, peak[i], yabs[i] = fold_extremes(0.0, 0.0, 0.0, y[i], th[i])  # the opening sample
@@ -232,7 +247,7 @@ def _integrate_chunk(state, p, alpha, fe, steps, lanes, lo, sgn_per_stage, out, 
         max_steps = max(max_steps, lanes.total[lo + i] * steps[i])
         live[i] = 1.0 if lanes.total[lo + i] > 0 else 0.0
     uniform = n > 0 and steps.min() == steps.max()
-    forcing = np.empty((3, 0 if uniform else n))
+    forcing = np.empty((3, 0 if uniform else width))
     next_end = period_end.min() if n > 0 else 0
     for k in range(max_steps):
         j = 2 * (k % steps[0]) if uniform else 0
@@ -253,12 +268,12 @@ def _integrate_chunk(state, p, alpha, fe, steps, lanes, lo, sgn_per_stage, out, 
                         i, y, yd, th, thd, peak, yabs, live, swing, period, lanes, lo, out, status, done, stretch
                     )
             next_end = min(next_end, period_end[i])
-        if live.max() == 0.0:
+        if live.max() == 0.0:  # lanes stop only at period ends
             break
-    state[0, :] = y
-    state[1, :] = yd
-    state[2, :] = th
-    state[3, :] = thd
+    state[0, :] = y[:n]
+    state[1, :] = yd[:n]
+    state[2, :] = th[:n]
+    state[3, :] = thd[:n]
 
 
 @nb.njit(cache=True, nogil=True, parallel=True)
@@ -268,7 +283,9 @@ def batched_periods(state, p, alpha, fe, steps, lanes, sgn_per_stage, bounds, ou
     Lane ``i`` is integrated as ``emulated_periods`` would with
     ``state[:, i]``, ``p[:, i]``, ``alpha[i]``, ``fe[i]``, ``steps[i]`` and
     ``lanes.transient[i]``, except that sin/cos come from
-    :func:`sincos_poly` (<= 1.5 ulp) and divisions become reciprocals.
+    :func:`sincos_poly` (<= 0.8 * 2**-52 absolute), divisions become reciprocals
+    and products and sums contract to FMA (tests bound the departure from the
+    exact kernel at 1e-6 of RK4's own truncation error over 120 periods).
 
     Parameters
     ----------
