@@ -14,10 +14,14 @@
 ``substructured``
     The substructuring loop (Eq. (3) numerical model, load-cell feedback of
     Eq. (4), actuator ``x(t) = y_cmd(t - tau)``) driven by the recorded
-    ``Fe``, in short-horizon segments started from the measured ``y_cmd``
-    (as ``y*``) and pendulum state, with the measured command history
-    feeding the delayed actuator. Compared channels: y (= x), theta, y_cmd
-    and Fs when recorded. The numerical mass and damping ``M1 = M - M2``,
+    ``Fe``, in short-horizon segments started from the recorded ``y_cmd``
+    (as ``y*``, exact: it is the controller's own number) and the estimated
+    pendulum state, with the recorded command history feeding the delayed
+    actuator and the recorded load-cell reading fed back over a segment's
+    first tick. The first :data:`COMMAND_HISTORY` seconds of the record only
+    serve as command history (the actuator there follows commands sent before
+    the record began) and are not compared. Compared channels: y (= x),
+    theta, y_cmd and Fs when recorded. The numerical mass and damping ``M1 = M - M2``,
     ``C1 = C - C2`` are code, so ``platform_mass``/``platform_damping``
     change the physical M2/C2 only and ``oscillator_mass``/``_damping`` the
     numerical M1/C1.
