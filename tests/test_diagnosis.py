@@ -157,7 +157,9 @@ def test_replay_error_is_unimodal_in_the_delay():
     local minimum at every whole sample (where the local search used to stall)."""
     tau = truth_value("substructured", "actuator_delay", 0.5, 2000.0)
     rp = Replay(
-        generate(Case("substructured", {"actuator_delay": tau}, rate=2000.0, seed=SEED + 21, theta_init=0.3, duration=6.0))
+        generate(
+            Case("substructured", {"actuator_delay": tau}, rate=2000.0, seed=SEED + 21, theta_init=0.3, duration=6.0)
+        )
     )
     taus = tau + rp.dt * np.arange(-3.0, 3.01, 0.2)
     err = np.array([rp.nrmse(rp.simulate({"tau": t})) for t in taus])
@@ -180,7 +182,9 @@ def test_substructured_chain_effects_at_2khz(cause):
 def test_encoder_nonlinearity_on_a_servo_rig_is_flagged():
     """On substructured records the load cell's noise dominates the pooled floor; a structured
     residual in theta alone (encoder nonlinearity) is flagged by the channel's own noise."""
-    case = Case("substructured", {}, {"encoder_nonlinearity": 0.004}, rate=2000.0, seed=SEED + 23, theta_init=0.3, duration=6.0)
+    case = Case(
+        "substructured", {}, {"encoder_nonlinearity": 0.004}, rate=2000.0, seed=SEED + 23, theta_init=0.3, duration=6.0
+    )
     _, js = run(case)
     assert js["cause"] == "none" and js["unexplained"] is True
     assert js["residual_to_noise"]["theta"] > 100 > js["residual_to_noise"]["Fs"]
