@@ -14,10 +14,14 @@
 ``substructured``
     The substructuring loop (Eq. (3) numerical model, load-cell feedback of
     Eq. (4), actuator ``x(t) = y_cmd(t - tau)``) driven by the recorded
-    ``Fe``, in short-horizon segments started from the measured ``y_cmd``
-    (as ``y*``) and pendulum state, with the measured command history
-    feeding the delayed actuator. Compared channels: y (= x), theta, y_cmd
-    and Fs when recorded. The numerical mass and damping ``M1 = M - M2``,
+    ``Fe``, in short-horizon segments started from the recorded ``y_cmd``
+    (as ``y*``, exact: it is the controller's own number) and the estimated
+    pendulum state, with the recorded command history feeding the delayed
+    actuator and the recorded load-cell reading fed back over a segment's
+    first tick. The first :data:`COMMAND_HISTORY` seconds of the record only
+    serve as command history (the actuator there follows commands sent before
+    the record began) and are not compared. Compared channels: y (= x),
+    theta, y_cmd and Fs when recorded. The numerical mass and damping ``M1 = M - M2``,
     ``C1 = C - C2`` are code, so ``platform_mass``/``platform_damping``
     change the physical M2/C2 only and ``oscillator_mass``/``_damping`` the
     numerical M1/C1.
@@ -59,6 +63,9 @@ MOTION_WINDOW = 0.25
 MAX_STEP = 1e-3
 #: Savitzky-Golay window for state estimates [s] (cubic).
 SMOOTH_WINDOW = 0.05
+#: Leading part of a substructured record that only serves as command history [s]: the
+#: actuator's position there follows commands sent before the record began.
+COMMAND_HISTORY = 0.05
 NUISANCE = ("theta_init", "thetadot_init")
 
 
@@ -121,7 +128,10 @@ class Replay:
         self.scale = {c: float(np.std(self.meas[c])) for c in self.channels}
         self.noise = {c: noise_std(self.meas[c]) for c in self.channels}
         self.folds = int(folds)
+        # Substructured: the first samples replay commands from before the record (unknown).
+        self.start = int(math.ceil(COMMAND_HISTORY / self.dt)) if self.kind == "substructured" else 0
         self.moving = self._moving()
+        self.moving[: self.start] = False
         self.eval_idx = np.flatnonzero(self.moving)
         n_blocks = self.folds * BLOCKS_PER_FOLD
         if len(self.eval_idx) < 10 * n_blocks:
@@ -141,7 +151,7 @@ class Replay:
             if not (math.isfinite(self.horizon) and self.horizon > 20 * self.dt):
                 raise ConfigError(f"horizon = {horizon!r} s must exceed 20 samples ({20 * self.dt:g} s)")
             h = int(round(self.horizon / self.dt))
-            self.segments = _cut(0, self.n, h)
+            self.segments = _cut(self.start, self.n, h)
             starts = np.array([s for s, _ in self.segments])
             # y* of a substructured test is the command (no prediction).
             y = est["y_cmd" if self.kind == "substructured" else "y"]
@@ -151,6 +161,12 @@ class Replay:
             if self.kind == "substructured":
                 self.command = np.ascontiguousarray(record.channel("y_cmd"))
                 self.command_slope = np.ascontiguousarray(est["y_cmd"][1])
+                # The command is the controller's own exact number: a segment's y* starts from it, not
+                # from its smoothed estimate, or the delayed command jumps where the measured history
+                # hands over to the replayed commands (a force spike of ms * jump / dt^2 there).
+                self.states0[:, 0] = self.command[starts]
+                # The load-cell reading at a segment's start is fed back over its first tick.
+                self.force_start = record.channel("Fs")[starts] if "Fs" in record.data else np.full(len(starts), np.nan)
             self.force = record.channel("Fe")
             self.force_half = midpoint_values(self.force)
             self.initial_guess = {}
@@ -191,6 +207,7 @@ class Replay:
 
     def _loop(self, v: dict[str, float], p: np.ndarray, theta_offset: float, stop: int) -> dict[str, np.ndarray]:
         sim = np.empty((stop, 4))
+        sim[: self.start] = np.nan  # command history, not replayed
         nom = self.nominal
         # M1, C1 are the numerical model's code values: M and C move them, M2 and C2 do not.
         M1 = v["M"] - nom["M2"]
@@ -221,6 +238,7 @@ class Replay:
                 cmdd,
                 i0,
                 sim[i0 : min(i1, stop)],
+                self.force_start[k],
             )
         return {"y": sim[:, 0], "theta": sim[:, 1] + theta_offset, "Fs": sim[:, 2], "y_cmd": sim[:, 3]}
 

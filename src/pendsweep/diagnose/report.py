@@ -10,7 +10,7 @@ import numpy as np
 
 from ..data import UNITS
 from .effects import EFFECTS, model_file, split_values
-from .fit import UNEXPLAINED_RATIO, Diagnosis
+from .fit import CHANNEL_RATIO, UNEXPLAINED_RATIO, Diagnosis
 from .signatures import backbone, cross_correlation, extrema, residual_spectrum, summarize
 
 #: A runner-up whose held-out error is within this factor of the best's is reported as not distinguishable.
@@ -230,7 +230,12 @@ def write_report(diag: Diagnosis, outdir: Path, source: str) -> list[Path]:
         f"| gain = 1 - after/before | {_fmt(js['gain'])} |",
         f"| explained share of the nominal's excess squared error | {_fmt(js['explained_share'])} |",
         f"| noise floor (sensor-noise NRMSE from the data) | {_fmt(diag.noise_floor)} |",
-        f"| unexplained (after^2 > {UNEXPLAINED_RATIO[rp.kind]:g} x floor^2) | {js['unexplained']} |",
+        f"| unexplained (after^2 > {UNEXPLAINED_RATIO[rp.kind]:g} x floor^2"
+        + (f", or a channel's > {CHANNEL_RATIO[rp.kind]:g} x its noise^2" if rp.kind in CHANNEL_RATIO else "")
+        + f") | {js['unexplained']} |",
+        "| residual / noise variance per sensor channel | "
+        + ", ".join(f"{c} {_fmt(v)}" for c, v in js["residual_to_noise"].items())
+        + " |",
     ]
     if val["method"] == "leave-one-record-out":
         for name, e0, e1 in zip(val["records"], val["cross_record_error_nominal"], val["cross_record_error"]):

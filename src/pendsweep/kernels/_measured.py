@@ -118,7 +118,7 @@ def _delayed_command(cmd, cmdd, k, r, tau, dt):
 
 @nb.njit(cache=True, nogil=True)
 def substructured_replay(
-    state, p, M1, C1, M2, C2, force, force_half, gain, gain_fs, tau, dt, substeps, cmd, cmdd, k0, out
+    state, p, M1, C1, M2, C2, force, force_half, gain, gain_fs, tau, dt, substeps, cmd, cmdd, k0, out, fs_start=math.nan
 ):
     """The substructuring loop driven by a recorded F_e, with x(t) = y_cmd(t - tau).
 
@@ -156,6 +156,12 @@ def substructured_replay(
         Record sample at which this segment starts.
     out : float64[n, 4]
         Filled with ``x [m], theta [rad], F_s measured [N], y_cmd [m]`` per sample.
+    fs_start : float, optional
+        Load-cell reading at sample ``k0`` [N], fed back over the first tick. A
+        segment started inside a record passes the measured value: the reading
+        is the mean force over the tick before ``k0``, which needs the pendulum's
+        state there. NaN (default): computed from ``state`` with the pendulum
+        term held over that tick (exact for a pendulum at rest).
 
     Returns
     -------
@@ -175,6 +181,8 @@ def substructured_replay(
         x, xd, _a = _delayed_command(cmd, cmdd, k, 0.0, tau, dt)
         mom = interface_momentum(xd, x, thd * math.sin(th), ms, C2, m, l)
         f_fb = gain_fs * (mom - mom_prev) / dt
+        if i == 0 and math.isfinite(fs_start):
+            f_fb = fs_start
         mom_prev = mom
         out[i, 0], out[i, 1], out[i, 2], out[i, 3] = x, th, f_fb, cmd[k]
         if i == n - 1:
