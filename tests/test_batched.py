@@ -76,7 +76,9 @@ def test_sincos_poly_quadrants_and_nan():
 
 def test_inner_loop_is_vectorised():
     """LLVM turns the per-point loop into packed AVX(-512) double arithmetic."""
-    fn = nb.njit(error_model="numpy")(_step_chunk.py_func)
+    fn = nb.njit(**{k: v for k, v in _step_chunk.targetoptions.items() if k not in ("cache", "nopython")})(
+        _step_chunk.py_func
+    )  # its own options, uncached (to inspect)
     n = 16
     fn(*[np.zeros(n) for _ in range(7)], np.ones((_N_CONST, n)), np.zeros((3, n)), True, 0.0, 0.0, 0.0, False)
     asm = next(iter(fn.inspect_asm().values()))

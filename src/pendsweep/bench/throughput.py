@@ -137,7 +137,9 @@ def vector_instructions() -> dict[str, int]:
     """Packed double instructions LLVM emitted for the batched inner loop, by register width."""
     from ..kernels._batched import _N_CONST, _step_chunk
 
-    fn = nb.njit(error_model="numpy")(_step_chunk.py_func)  # uncached, to inspect
+    fn = nb.njit(**{k: v for k, v in _step_chunk.targetoptions.items() if k not in ("cache", "nopython")})(
+        _step_chunk.py_func
+    )  # uncached, to inspect
     fn(*[np.zeros(8) for _ in range(7)], np.ones((_N_CONST, 8)), np.zeros((3, 8)), True, 0.0, 0.0, 0.0, False)
     asm = next(iter(fn.inspect_asm().values()))
     ops = r"\bv(?:fn?m(?:add|sub)\d+|mul|add|sub|div|sqrt)pd\s+%?"
