@@ -340,14 +340,25 @@ def _unit(config: SweepConfig, r: PointResult) -> UnitResult:
     return UnitResult(r.key, result_rows(config, r), r.run.state.tolist())
 
 
-def _classified(config, backend, params, run) -> str:
-    return classify_runs(backend, [params], [run], config.rest_threshold)[0].label
+def _classified(config, backend, pending: list[tuple[PointResult, ModelParams]]) -> Iterator[UnitResult]:
+    """The pending points of a continue branch, labelled together (one evidence launch), as units."""
+    motions = classify_runs(backend, [q for _, q in pending], [r.run for r, _ in pending], config.rest_threshold)
+    for (r, _), motion in zip(pending, motions):
+        yield _unit(config, dataclasses.replace(r, motion=motion.label))
+
+
+#: Continue-mode points labelled together: the evidence of a moving point
+#: (a 200-period extension and a Lyapunov pair) fills a whole vector group of
+#: the batched kernel, so one launch for many points costs about what one
+#: point alone does. A crash loses at most these points (recomputed alike).
+CLASSIFY_GROUP = 16
 
 
 def _continue_branch(config, backend, direction, indices, resume) -> Iterator[UnitResult]:
     """Walk one branch, carrying the state; ``resume`` describes finished units."""
     state = None  # None: start (or restart) from config.initial
     kick_next = False
+    pending: list[tuple[PointResult, ModelParams]] = []
     for i in indices:
         key = unit_key(direction, i, 0)
         if key in resume:
@@ -363,13 +374,16 @@ def _continue_branch(config, backend, direction, indices, resume) -> Iterator[Un
             state = backend.kick(state, config.kick)
             kicked = True
         (run,), settled, used = run_units(config, backend, [params], np.array([state]), one_by_one=True)
-        motion = _classified(config, backend, params, run)
-        yield _unit(
-            config, PointResult(direction, i, 0, config.values[i], run, kicked, motion, bool(settled[0]), int(used[0]))
+        pending.append(
+            (PointResult(direction, i, 0, config.values[i], run, kicked, "", bool(settled[0]), int(used[0])), params)
         )
+        if len(pending) == CLASSIFY_GROUP:
+            yield from _classified(config, backend, pending)
+            pending = []
         ok = run.status is Status.OK
         state = run.state if ok else None
         kick_next = ok and at_rest(run.records[:, REC_THETA_ABSMAX], config.rest_threshold)
+    yield from _classified(config, backend, pending)
 
 
 def _independent_units(config, backend, units, threads) -> list[UnitResult]:

@@ -173,7 +173,7 @@ def run_lanes(
 
     ``lanes`` is the kernel's :class:`~pendsweep.kernels._batched.Lanes` in the
     order of ``params`` (a twin's ``partner`` indexes that order); lanes are
-    sorted by steps per period here and the indices remapped. Returns the :class:`BatchRun` (records ``(n, record_periods, 8)``) and the
+    sorted by steps per period and length here and the indices remapped. Returns the :class:`BatchRun` (records ``(n, record_periods, 8)``) and the
     twins' log-stretch samples ``(n, stretch_periods)``, NaN where none, in
     the order of ``params``. A twin and its partner are kept in one chunk.
     """
@@ -186,10 +186,14 @@ def run_lanes(
     if n == 0:
         return BatchRun(records, states.copy(), status, done), stretch
     steps = np.array([steps_per_period(q.fe, dt) for q in params], dtype=np.int64)
-    order = np.argsort(steps, kind="stable")  # a twin follows its partner: equal steps keep their order
+    partner = np.asarray(lanes.partner, dtype=np.int64)
+    # Lanes sorted by steps per period (chunks share forcing tables), then by
+    # length, so that a chunk's lanes finish together (its dead lanes are
+    # still stepped until its longest one ends); each twin right after its partner.
+    head = np.where(partner >= 0, partner, np.arange(n))
+    order = np.lexsort((partner >= 0, head, np.asarray(lanes.total)[head], steps))
     position = np.empty(n, dtype=np.int64)
     position[order] = np.arange(n)
-    partner = np.asarray(lanes.partner, dtype=np.int64)
     sorted_partner = np.where(partner[order] >= 0, position[np.maximum(partner[order], 0)], -1)
     lanes = lanes._replace(
         transient=np.ascontiguousarray(np.asarray(lanes.transient, dtype=np.int64)[order]),
