@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 
 from pendsweep.backends import BackendBase, EmulatedBackend, PointRun
-from pendsweep.backends._batch import chunk_bounds, run_batch
+from pendsweep.backends._batch import batched_evidence, chunk_bounds, run_batch, run_lanes
 from pendsweep.classify import classify_run
 from pendsweep.errors import ConfigError
 from pendsweep.kernels import RECORD_COLUMNS, STATUS_DIVERGED, STATUS_OK
-from pendsweep.kernels._batched import _N_CONST, _step_chunk
+from pendsweep.kernels._batched import _N_CONST, Lanes, _step_chunk
 from pendsweep.kernels._layout import SECTION_COLUMNS
 from pendsweep.kernels._sincos import sincos_poly
 from pendsweep.params import TABLE_IV
@@ -322,3 +322,42 @@ def test_fast_arithmetic_stays_far_below_rk4_truncation_error(signum):
         truncation = np.abs(halved - reference.records[:, SECTION_COLUMNS]).max()
         assert truncation > 1e-7, "the dt/2 run must resolve RK4's error"
         assert departure <= 1e-6 * truncation, f"{p.alpha} N: {departure:.3g} against {truncation:.3g}"
+
+
+def test_evidence_whose_lyapunov_run_outlasts_the_extension():
+    """The Lyapunov pair may run longer than the extension (a record over 200 periods).
+
+    It records nothing, so the records array (sized by the extension) is
+    never written past its end; its stretch samples do not depend on the
+    extension's length.
+    """
+    params = [TABLE_IV.replace(alpha=a) for a in (38.0, 41.0)]
+    finals = np.array([[0.0, 0.0, 0.4, 1.0], [0.0, 0.0, -0.3, 2.0]])
+    scales = np.ones((2, 4))
+    kw = dict(lyapunov_periods=40, d0=1e-8, rest=1e-3)
+    short = batched_evidence(params, finals, finals, scales, extend_periods=30, **kw)
+    long = batched_evidence(params, finals, finals, scales, extend_periods=60, **kw)
+    for (sections_short, stretch_short), (sections_long, stretch_long) in zip(short, long):
+        assert sections_short.shape == (30, 4) and sections_long.shape == (60, 4)
+        np.testing.assert_array_equal(sections_short, sections_long[:30])
+        assert len(stretch_short) == 40
+        np.testing.assert_array_equal(stretch_short, stretch_long)
+
+
+def test_run_lanes_refuses_a_schedule_longer_than_its_arrays():
+    params = [TABLE_IV] * 2
+    states = np.tile([0.0, 0.0, 0.1, 0.0], (2, 1))
+    lanes = Lanes(
+        transient=np.zeros(2, dtype=np.int64),
+        total=np.array([5, 5]),
+        partner=np.array([-1, 0]),
+        scales=np.ones((4, 2)),
+        d0=1e-8,
+        rest=0.0,
+    )
+    with pytest.raises(ValueError, match="record_periods"):
+        run_lanes(params, states, lanes, 4, 5)
+    with pytest.raises(ValueError, match="stretch_periods"):
+        run_lanes(params, states, lanes, 5, 4)
+    run, stretch = run_lanes(params, states, lanes, 5, 5)
+    assert run.records.shape == (2, 5, 8) and stretch.shape == (2, 5)

@@ -178,6 +178,12 @@ def run_lanes(
     the order of ``params``. A twin and its partner are kept in one chunk.
     """
     n = len(params)
+    total = np.asarray(lanes.total, dtype=np.int64)
+    twins = np.asarray(lanes.partner) >= 0
+    if n and (total - np.asarray(lanes.transient)).max() > int(record_periods):
+        raise ValueError(f"a lane records more than record_periods = {record_periods} periods")
+    if twins.any() and total[twins].max() > int(stretch_periods):
+        raise ValueError(f"a twin runs more than stretch_periods = {stretch_periods} periods")
     states = np.asarray(states, dtype=np.float64).reshape(n, 4)
     records = np.full((n, int(record_periods), N_RECORD_COLUMNS), np.nan)
     stretch = np.full((n, int(stretch_periods)), np.nan)
@@ -284,9 +290,10 @@ def batched_evidence(
     twins[:, 2] += d0 * np.asarray(scales)[:, 2]
     states = np.stack([np.asarray(finals, dtype=np.float64).reshape(m, 4), firsts, twins], axis=1).reshape(3 * m, 4)
     index = np.arange(3 * m)
+    total = np.where(index % 3 == 0, int(extend_periods), int(lyapunov_periods)).astype(np.int64)
     lanes = Lanes(
-        transient=np.zeros(3 * m, dtype=np.int64),
-        total=np.where(index % 3 == 0, int(extend_periods), int(lyapunov_periods)).astype(np.int64),
+        transient=np.where(index % 3 == 0, 0, total),  # the Lyapunov pair records nothing, only its stretch
+        total=total,
         partner=np.where(index % 3 == 2, index - 1, -1).astype(np.int64),
         scales=np.repeat(np.asarray(scales, dtype=np.float64).reshape(m, 4), 3, axis=0).T,
         d0=float(d0),

@@ -189,7 +189,7 @@ def _close_period(i, y, yd, th, thd, peak, yabs, live, swing, period, lanes, lo,
     kp = period[i]
     r = kp - lanes.transient[lo + i]
     if not (math.isfinite(y[i]) and math.isfinite(yd[i]) and math.isfinite(th[i]) and math.isfinite(thd[i])):
-        if r >= 0:
+        if 0 <= r < out.shape[1]:
             out[i, r, :] = np.nan
         status[i] = STATUS_DIVERGED
         done[i] = kp
@@ -199,7 +199,7 @@ def _close_period(i, y, yd, th, thd, peak, yabs, live, swing, period, lanes, lo,
     turns = wrap_index(th[i])
     th[i] -= TWO_PI * turns
     swing[i] = abs(peak[i])
-    if r >= 0:
+    if 0 <= r < out.shape[1]:  # the schedule keeps r below out.shape[1]; never write past it
         row = out[i, r]
         row[REC_THETA_PEAK] = peak[i]
         row[REC_THETA_ABSMAX] = swing[i]
@@ -216,7 +216,8 @@ def _close_period(i, y, yd, th, thd, peak, yabs, live, swing, period, lanes, lo,
         if swing[ref] < lanes.rest or not (math.isfinite(distance) and distance > 0):
             live[i] = 0.0
             return
-        stretch[i, kp] = math.log(distance / lanes.d0)
+        if kp < stretch.shape[1]:
+            stretch[i, kp] = math.log(distance / lanes.d0)
         g = lanes.d0 / distance
         y[i], yd[i] = y[ref] + full[0] * g, yd[ref] + full[1] * g
         th[i], thd[i] = th[ref] + full[2] * g, thd[ref] + full[3] * g
@@ -247,7 +248,10 @@ def _integrate_chunk(state, p, alpha, fe, steps, lanes, lo, sgn_per_stage, out, 
         max_steps = max(max_steps, lanes.total[lo + i] * steps[i])
         live[i] = 1.0 if lanes.total[lo + i] > 0 else 0.0
     uniform = n > 0 and steps.min() == steps.max()
-    forcing = np.empty((3, 0 if uniform else width))
+    # Full size even when unused (uniform chunks): a zero-size array can sit
+    # inside one of the written arrays, LLVM's runtime overlap check then sends
+    # the whole loop to its scalar fallback, which contracts to FMA differently.
+    forcing = np.zeros((3, width))
     next_end = period_end.min() if n > 0 else 0
     for k in range(max_steps):
         j = 2 * (k % steps[0]) if uniform else 0
