@@ -58,6 +58,7 @@ The thresholds were chosen on the calibration seed range of
 
 from __future__ import annotations
 
+import hashlib
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -105,6 +106,20 @@ class _Param:
     upper: float
 
 
+def record_key(replay: Replay) -> tuple[str, str]:
+    """Canonical sort key of a record: a digest of its compared channels, then its name.
+
+    The content decides (a renamed file keeps its place); the name breaks the tie
+    of two identical records. Least squares on the records in this order is the
+    same computation, bit for bit, whatever order the user listed them in.
+    """
+    digest = hashlib.sha256(replay.kind.encode())
+    for c in replay.channels:
+        digest.update(c.encode())
+        digest.update(np.ascontiguousarray(replay.meas[c], dtype=np.float64).tobytes())
+    return digest.hexdigest(), replay.record.name
+
+
 class Problem:
     """One record, or several records of one rig, to be fitted together.
 
@@ -112,7 +127,10 @@ class Problem:
     ----------
     replays : list of Replay
         Records of one kind. Physical parameters are shared; chain parameters
-        and free-decay initial states are per record.
+        and free-decay initial states are per record. They are kept in a
+        canonical order (by content, see :func:`record_key`), so that the fit,
+        the folds and the verdict do not depend on the order they were given in;
+        ``param@i`` keys refer to that order (``validation.records``).
     """
 
     def __init__(self, replays: list[Replay]):
@@ -121,7 +139,7 @@ class Problem:
         kinds = {r.kind for r in replays}
         if len(kinds) > 1:
             raise ConfigError(f"records of one rig must be of one kind; got {', '.join(sorted(kinds))}")
-        self.replays = list(replays)
+        self.replays = sorted(replays, key=record_key)
         self.kind = replays[0].kind
         self.joint = len(replays) > 1
         samples = np.array([len(r.eval_idx) * len(r.channels) for r in replays], dtype=float)
@@ -255,7 +273,13 @@ def _params(problem: Problem, causes: tuple[str, ...], starts: dict[str, float])
         records = range(len(problem.replays)) if problem.per_record(eff.param) else [None]
         for i in records:
             key = eff.param if i is None else problem.key(eff.param, i)
-            s0 = starts.get(key, start_value(problem.replays[i or 0], eff))
+            if key not in starts:
+                # A shared parameter starts from the median of the records' data-based starts:
+                # the same start whatever the order of the records.
+                own = [problem.replays[i]] if i is not None else problem.replays
+                s0 = float(np.median([start_value(rp, eff) for rp in own]))
+            else:
+                s0 = starts[key]
             # trf's scaling freezes a variable that starts on its bound: start just inside.
             s0 = max(s0, eff.lower + 0.05 * eff.scale)
             out.append(_Param(key, i, s0, max(abs(s0), eff.scale), eff.lower, eff.upper))
@@ -432,6 +456,11 @@ def _score(problem: Problem, fit: Fit, cause: str) -> float:
     return float((j @ r0) ** 2 / (j @ j))
 
 
+def _rank(fit: Fit) -> tuple[float, float, str]:
+    """Ranking key of candidates: cross-validated error, then BIC, then the name (deterministic ties)."""
+    return fit.error_cv, fit.bic, fit.cause or ""
+
+
 def block_test(before: Fit, after: Fit) -> float:
     """One-sided p value that ``after`` predicts the held-out blocks better than ``before``.
 
@@ -518,6 +547,32 @@ def _judge(problem: Problem, base: Fit, model: Fit, share_min: float, causes: tu
     }
 
 
+def failed_tests(judgement: dict[str, Any]) -> list[str]:
+    """The tests of one :func:`_judge` result that failed, in words (empty when it passed)."""
+    j, out = judgement, []
+    against = j["against"]
+    if j["explained_share"] < j["share_needed"]:
+        out.append(
+            f"explains {j['explained_share']:.2f} of {against}'s excess squared error, "
+            f"{j['share_needed']:g} needed"
+        )
+    if not j["reduction"] > j["reduction_needed"]:
+        out.append(f"reduction {j['reduction']:.3g} of {against}'s squared error below {j['reduction_needed']:.3g}")
+    if not j["p_value"] < j["p_needed"]:
+        out.append(f"block test against {against}: p = {j['p_value']:.2g}, below {j['p_needed']:g} needed")
+    for c, z in j["z"].items():
+        if not z >= j["z_needed"]:
+            out.append(
+                f"{c}: change from nominal only {z:.2f} of its uncertainty (jackknife over the folds), "
+                f"{j['z_needed']:g} needed"
+            )
+        if not j["folds_agree"][c]:
+            out.append(f"{c}: the folds disagree on the direction of the change")
+    if j.get("chain_ok") is False:
+        out.append("does not beat its single cause with the actuator delay freed (absorbs model-form error)")
+    return out
+
+
 @dataclass
 class Diagnosis:
     """Nominal comparison, ranked candidates, verdict and what remains, for one or several records."""
@@ -555,6 +610,35 @@ class Diagnosis:
         if self.best is None or excess <= 0:
             return 0.0
         return float(np.clip((self.nominal.error_cv**2 - self.error_after**2) / excess, 0.0, 1.0))
+
+    def status(self, fit: Fit) -> tuple[str, list[str]]:
+        """Whether ``fit`` was named, rejected (and which tests failed) or not judged (and why)."""
+        if fit.cause == self.cause:
+            return "named", []
+        first, second = self.tests.get("first_round"), self.tests.get("second_round")
+        for j in (first, second):
+            if j is not None and j["model"] == fit.cause:
+                reasons = failed_tests(j)
+                if j is second and not j["against_nominal_passed"]:
+                    reasons += [
+                        r + " (against nominal)"
+                        for r in failed_tests(self.tests["second_against_nominal"])
+                        if r not in reasons
+                    ]
+                if not reasons and self.cause != "none":
+                    reasons = [f"passed, but {self.cause} was named after it"]
+                return "rejected", reasons
+        if len(fit.causes) == 1:
+            best = first["model"] if first else None
+            return "not judged", [f"only the best single cause ({best}) is tested in the first round"]
+        best = second["model"] if second else None
+        return "not judged", [f"only the best pair ({best}) is tested in the second round"]
+
+    def second_round_note(self) -> str:
+        """Whether pairs were tried, and why not when they were not."""
+        if "second_round" in self.tests:
+            return "run"
+        return "not run: the best single cause leaves no structured residual (or only one candidate)"
 
     @property
     def unexplained(self) -> bool:
@@ -601,9 +685,16 @@ class Diagnosis:
             "validation": self.validation(),
             "residual_signature": residual_signature(self.problem, self.verdict_fit),
             "candidates": [
-                {"cause": c.cause, "estimate": c.estimate, "error_after": c.error_cv, "bic": c.bic}
+                dict(
+                    zip(("status", "reasons"), self.status(c)),
+                    cause=c.cause,
+                    estimate=c.estimate,
+                    error_after=c.error_cv,
+                    bic=c.bic,
+                )
                 for c in self.candidates
             ],
+            "second_round": self.second_round_note(),
         }
 
 
@@ -639,7 +730,7 @@ def _diagnose(problem: Problem, causes: list[str] | None, n_jobs: int) -> Diagno
     fits = pool(delayed(fit_model)(problem, (c,), nuisance) for c in causes)
     tests: dict[str, Any] = {"noise_floor": problem.floor}
     verdict = "none"
-    first = min(fits, key=lambda f: (f.error_cv, f.bic)) if fits else None
+    first = min(fits, key=_rank) if fits else None
     if first is not None:
         tests["first_round"] = _judge(problem, nominal, first, SHARE_MIN, first.causes)
         if tests["first_round"]["passed"]:
@@ -649,7 +740,7 @@ def _diagnose(problem: Problem, causes: list[str] | None, n_jobs: int) -> Diagno
     # single cause of a two-effect record need not be one of the two).
     if first is not None and len(causes) > 1 and structured_residual(problem, first, SECOND_ROUND_RATIO):
         singles = {f.causes[0]: f for f in fits}
-        ranked = sorted(fits, key=lambda f: (f.error_cv, f.bic))[:BEAM]
+        ranked = sorted(fits, key=_rank)[:BEAM]
         jobs, tests["partner_scores"] = [], {}
         for single in ranked:
             others = [c for c in causes if c != single.cause]
@@ -662,12 +753,13 @@ def _diagnose(problem: Problem, causes: list[str] | None, n_jobs: int) -> Diagno
                 (single, c) for c in partners if not any({single.cause, c} == set(s.causes) | {p} for s, p in jobs)
             ]
         pairs = pool(delayed(fit_model)(problem, s.causes + (c,), dict(nuisance, **s.values)) for s, c in jobs)
-        pair = min(pairs, key=lambda f: (f.error_cv, f.bic))
+        pair = min(pairs, key=_rank)
         # Judged against the better of its own two single causes.
-        base = min((singles[c] for c in pair.causes), key=lambda f: (f.error_cv, f.bic))
+        base = min((singles[c] for c in pair.causes), key=_rank)
         second = _judge(problem, base, pair, SECOND_SHARE_MIN, pair.causes)
         against_nominal = _judge(problem, nominal, pair, SHARE_MIN, pair.causes)
         second["against_nominal_passed"] = against_nominal["passed"]
+        tests["second_against_nominal"] = against_nominal
         chain_ok = True
         with_delay = [f for f in pairs if set(f.causes) == {base.cause, "actuator_delay"}]
         if with_delay and "actuator_delay" not in pair.causes:
@@ -681,5 +773,5 @@ def _diagnose(problem: Problem, causes: list[str] | None, n_jobs: int) -> Diagno
         if second["passed"] and against_nominal["passed"] and chain_ok:
             verdict = pair.cause
         fits += pairs
-    fits.sort(key=lambda f: (f.error_cv, f.bic))
+    fits.sort(key=_rank)
     return Diagnosis(problem, nominal, fits, verdict, tests)
