@@ -700,7 +700,9 @@ class Diagnosis:
                     zip(("status", "reasons"), self.status(c)),
                     cause=c.cause,
                     estimate=c.estimate,
+                    uncertainty=c.uncertainty,
                     error_after=c.error_cv,
+                    cross_record_error=c.record_cv if self.problem.joint else None,
                     bic=c.bic,
                 )
                 for c in self.candidates
