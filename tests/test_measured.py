@@ -407,8 +407,13 @@ def test_cli_synth_diagnose_report(tmp_path):
         "noise_floor",
         "validation",
         "residual_signature",
+        "second_round",
     }
     assert js["unexplained"] is False and js["explained_share"] > 0.9
+    statuses = {c["cause"]: c["status"] for c in js["candidates"]}
+    assert statuses.pop("viscous_damping") == "named"
+    assert all(s in ("rejected", "not judged") for s in statuses.values())
+    assert all(c["reasons"] for c in js["candidates"] if c["status"] != "named")
     assert js["validation"]["method"] == "blocked cross-validation" and js["validation"]["folds"] == 5
     assert js["cause"] == "viscous_damping"
     assert [c["error_after"] for c in js["candidates"]] == sorted(c["error_after"] for c in js["candidates"])

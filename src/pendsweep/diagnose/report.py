@@ -296,14 +296,16 @@ def write_report(diag: Diagnosis, outdir: Path, source: str) -> list[Path]:
         "",
         "## Candidates (sorted by cross-validated NRMSE)",
         "",
-        "| cause | estimate | ± | cross-validated NRMSE | BIC (fit) |",
-        "|---|---|---|---|---|",
+        "| cause | estimate | ± | cross-validated NRMSE | BIC (fit) | status |",
+        "|---|---|---|---|---|---|",
     ]
     for c in diag.candidates:
         est = ", ".join(f"{p} = {_fmt(v)}" for p, v in c.estimate.items())
         err = ", ".join(_fmt(c.stderr[p]) for p in c.estimate)
-        lines.append(f"| `{c.cause}` | {est} | {err} | {_fmt(c.error_cv)} | {c.bic:.1f} |")
-    lines.append(f"| (nominal) | | | {_fmt(diag.nominal.error_after)} | {diag.nominal.bic:.1f} |")
+        status, reasons = diag.status(c)
+        why = f"{status}: {'; '.join(reasons)}" if reasons else status
+        lines.append(f"| `{c.cause}` | {est} | {err} | {_fmt(c.error_cv)} | {c.bic:.1f} | {why} |")
+    lines.append(f"| (nominal) | | | {_fmt(diag.nominal.error_after)} | {diag.nominal.bic:.1f} | |")
     lines += ["", "## Signature diagnostics (nominal model)", "", "| signature | value |", "|---|---|"]
     lines += [f"| {k} | {_fmt(v)} |" for k, v in sig.items()]
     lines += [
