@@ -215,6 +215,15 @@ def test_installed_wheel_runs_from_an_empty_folder(tmp_path):
     assert {p.name for p in (work / "results").rglob("*.p*")} == {"fig5_margin.png", "hopf.parquet"}
 
 
+def test_click_usage_errors_are_one_line_too():
+    """Errors click raises itself (unknown option or command, a value outside an IntRange) exit 2 in one line."""
+    for args in (["alpha", "--bogus"], ["--bogus"], ["nosuchcmd"], ["alpha", "--seed", -1], ["alpha", "--step", "nan"]):
+        r = invoke(*args)
+        assert r.exit_code == 2 and r.output.count("\n") == 1 and r.output.startswith("Error: "), (args, r.output)
+    r = invoke()  # no command: the group's help, as before
+    assert "Commands:" in r.output
+
+
 def test_corrupt_results_file_is_a_runtime_failure(tmp_path, monkeypatch):
     """Bad input exits 2; a results file that exists but cannot be read back exits 1 (one line, no traceback)."""
     monkeypatch.chdir(tmp_path)

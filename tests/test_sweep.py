@@ -227,7 +227,8 @@ def test_result_files_get_normal_permissions(tmp_path):
 def test_adaptive_transient_reaches_what_a_long_fixed_transient_reaches():
     """--transient auto stops each point once it has settled; the labels are those of a
     1000-period fixed transient, reached with fewer periods, and the rows say how many."""
-    values = (6.0, 14.0, 16.5, 30.0)  # comes to rest; slow decay below Hopf; slow growth above; period-2
+    # unforced (the oscillator decays to rest too); comes to rest; slow decay below Hopf; slow growth above; period-2
+    values = (0.0, 6.0, 14.0, 16.5, 30.0)
     auto = run_sweep(SweepConfig("alpha", values, mode="fresh", transient="auto", max_transient_periods=1000))
     long = run_sweep(SweepConfig("alpha", values, mode="fresh", transient_periods=1000))
     short = run_sweep(SweepConfig("alpha", values, mode="fresh"))  # the paper's 100 periods

@@ -44,7 +44,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .classify import MAX_PERIOD, PERIODIC_TOL, section_difference
+from .classify import MAX_PERIOD, PERIODIC_TOL, Y_FLOOR, section_difference
 from .kernels._layout import (
     REC_ROTATIONS,
     REC_THETA_ABSMAX,
@@ -138,11 +138,11 @@ def section_scales_many(records: np.ndarray, omega_e, omega_p) -> np.ndarray:
     -------
     float64[k, 4]
         ``(Y, w_e Y, 1, w_p)`` per run, ``Y`` the largest |y| [m] of its
-        record (1 when the record holds none).
+        record, at least ``Y_FLOOR`` (1 when the record holds none).
     """
     k = records.shape[0]
     Y = np.fmax.reduce(records[:, :, REC_Y_ABSMAX], axis=1) if records.shape[1] else np.zeros(k)
-    Y = np.where(np.isfinite(Y) & (Y > 0), Y, 1.0)
+    Y = np.where(np.isfinite(Y), np.fmax(Y, Y_FLOOR), 1.0)
     return np.stack([Y, omega_e * Y, np.ones(k), np.broadcast_to(omega_p, (k,))], axis=1)
 
 

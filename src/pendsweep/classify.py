@@ -82,6 +82,10 @@ LYAP_SIGMAS = 3.0
 LYAP_FLOOR = 0.01
 #: Periods simulated past the record to look for closed curves or late settling.
 EXTEND_PERIODS = 200
+#: Smallest oscillator amplitude a section is normalised by [m]: an unforced
+#: oscillator decaying to rest would otherwise be measured against its own
+#: vanishing amplitude and never repeat (1 nm is far below any displacement sensor).
+Y_FLOOR = 1e-9
 #: Closed-curve test: largest mean radius jump between angular neighbours [fraction of mean radius].
 CURVE_ROUGHNESS = 0.1
 #: Closed-curve test: largest angular gap between neighbours [rad].
@@ -133,8 +137,13 @@ class Evidence:
 
 
 def section_scales(records: np.ndarray, params: ModelParams) -> np.ndarray:
-    """Divisors ``(Y, w_e Y, 1, w_p)`` that make the section dimensionless."""
-    Y = float(np.nanmax(records[:, REC_Y_ABSMAX])) or 1.0
+    """Divisors ``(Y, w_e Y, 1, w_p)`` that make the section dimensionless.
+
+    ``Y`` is the largest |y| of the record, at least :data:`Y_FLOOR` (1 when
+    the record holds no finite value).
+    """
+    y = records[:, REC_Y_ABSMAX]
+    Y = max(float(np.nanmax(y)), Y_FLOOR) if np.isfinite(y).any() else 1.0
     return np.array([Y, params.omega_e * Y, 1.0, params.omega_p])
 
 

@@ -25,10 +25,28 @@ class RuntimeFailure(click.ClickException):
     exit_code = 1
 
 
+#: click >= 8.2 shows a group's help through this UsageError when no command is given.
+_HELP_ON_NO_ARGS = getattr(click.exceptions, "NoArgsIsHelpError", ())
+
+
 class _Group(click.Group):
+    # click's own usage errors (an unknown option, a value outside an IntRange)
+    # print usage and a hint before the error: one line here, like ours.
+    def make_context(self, *args, **kwargs) -> click.Context:
+        try:
+            return super().make_context(*args, **kwargs)
+        except _HELP_ON_NO_ARGS:
+            raise
+        except click.UsageError as exc:
+            raise UsageFailure(exc.format_message()) from None
+
     def invoke(self, ctx: click.Context):
         try:
             return super().invoke(ctx)
+        except _HELP_ON_NO_ARGS:
+            raise
+        except click.UsageError as exc:
+            raise UsageFailure(exc.format_message()) from None
         except PendsweepError as exc:
             cls = RuntimeFailure if exc.exit_code == 1 else UsageFailure
             raise cls(str(exc)) from None

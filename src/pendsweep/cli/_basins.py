@@ -293,7 +293,10 @@ def basins_command(parameter, start, stop, step, points, **kw):
         )
         for a in summary["attractors"]:
             click.echo(
-                f"  attractor {a['id']}: {a['motion']} period {a['period']} rotation {a['rotation_number']:+g} "
+                f"  attractor {a['id']}: {a['motion']} "
+                # period 0: settled by a steady rotation number, its section never repeating (quasi-periodic)
+                + (f"period {a['period']}" if a["period"] else "no section period")
+                + f" rotation {a['rotation_number']:+g} "
                 f"max|theta| {a['theta_absmax']:.3f} rad: {100 * a['fraction']:.2f} ± {100 * a['stderr']:.2f}%"
             )
     else:
