@@ -408,6 +408,7 @@ def test_cli_synth_diagnose_report(tmp_path):
         "validation",
         "residual_signature",
         "second_round",
+        "nuisance",
     }
     assert js["unexplained"] is False and js["explained_share"] > 0.9
     statuses = {c["cause"]: c["status"] for c in js["candidates"]}

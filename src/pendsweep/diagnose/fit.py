@@ -92,7 +92,7 @@ CHANNEL_RATIO = {"substructured": 60.0}
 #: Channels recorded exactly (the controller's own command): no sensor noise to compare with.
 EXACT_CHANNELS = ("y_cmd",)
 #: Scales of the free-decay nuisance parameters [rad], [rad/s].
-_NUISANCE_SCALE = {"theta_init": 0.01, "thetadot_init": 0.05}
+_NUISANCE_SCALE = {"theta_init": 0.01, "thetadot_init": 0.05, "theta_offset": 0.01}
 _DIVERGED = 1e3
 
 
@@ -142,6 +142,10 @@ class Problem:
         self.replays = sorted(replays, key=record_key)
         self.kind = replays[0].kind
         self.joint = len(replays) > 1
+        # Free decays of one rig, each released and zeroed by hand: every record's encoder zero
+        # is a nuisance of its own (real zeros differ by degrees; one shared zero, or none, leaves
+        # a residual far above the encoder floor).
+        self.nuisance = NUISANCE + (("theta_offset",) if self.joint and self.kind == "free_decay" else ())
         samples = np.array([len(r.eval_idx) * len(r.channels) for r in replays], dtype=float)
         self.floor = float(math.sqrt(np.sum(samples * [r.noise_floor() ** 2 for r in replays]) / samples.sum()))
 
@@ -283,13 +287,15 @@ def _params(problem: Problem, causes: tuple[str, ...], starts: dict[str, float])
             # trf's scaling freezes a variable that starts on its bound: start just inside.
             s0 = max(s0, eff.lower + 0.05 * eff.scale)
             out.append(_Param(key, i, s0, max(abs(s0), eff.scale), eff.lower, eff.upper))
+    freed = {p.key for p in out}
     for i, rp in enumerate(problem.replays):
         if rp.fits_initial_state:
-            for nm in NUISANCE:
+            for nm in problem.nuisance:
                 key = problem.key(nm, i)
-                out.append(
-                    _Param(key, i, starts.get(key, rp.initial_guess[nm]), _NUISANCE_SCALE[nm], -math.inf, math.inf)
-                )
+                if key in freed:  # the encoder zero, when a candidate (angle_offset) frees it already
+                    continue
+                guess = rp.initial_guess.get(nm, rp.nominal.get(nm, 0.0))
+                out.append(_Param(key, i, starts.get(key, guess), _NUISANCE_SCALE[nm], -math.inf, math.inf))
     return out
 
 
@@ -364,9 +370,18 @@ def fit_model(
         problem = Problem([problem])
     rps = problem.replays
     best = None
+    objective = [rp.eval_idx for rp in rps]
     for start in (starts or {}, *other_starts):
         params = _params(problem, tuple(causes), start)
-        values, jac, r = _solve(problem, params, [rp.eval_idx for rp in rps], {}, staged=True)
+        zeros = [p for p in params if p.key.split("@")[0] == "theta_offset" and p.record is not None]
+        zeros = [p for p in zeros if p.key not in start and "angle_offset" not in causes]
+        if zeros:
+            # Encoder zeros without a start: fit the rest with the zeros held first, so that the
+            # zeros cannot absorb a wrong swing in the first iterations, then free them.
+            movable = [p for p in params if p not in zeros]
+            held, _, _ = _solve(problem, movable, objective, {p.key: p.start for p in zeros}, staged=True)
+            params = _params(problem, tuple(causes), dict(start, **held))
+        values, jac, r = _solve(problem, params, objective, {}, staged=not zeros)
         if best is None or float(r @ r) < float(best[3] @ best[3]):
             best = params, values, jac, r
     params, values, jac, r = best
@@ -708,6 +723,9 @@ class Diagnosis:
                 for c in self.candidates
             ],
             "second_round": self.second_round_note(),
+            "nuisance": {
+                k: v for k, v in self.verdict_fit.values.items() if k.split("@")[0] in self.problem.nuisance
+            },
         }
 
 
@@ -741,19 +759,40 @@ def _pair_starts(problem: Problem, single: Fit, partner: Fit) -> tuple[dict[str,
     if not problem.joint:
         return ()
     own = {k: partner.values[k] for c in partner.causes for k in partner.keys_of(c)}
-    return dict(partner.values), dict(single.values, **own)
+    return _without_zeros(partner.values), _without_zeros(dict(single.values, **own))
+
+
+def _without_zeros(values: dict[str, float]) -> dict[str, float]:
+    """``values`` less the per-record encoder zeros (a fit starting from them fits the zeros last)."""
+    return {k: v for k, v in values.items() if not k.startswith("theta_offset@")}
 
 
 def _diagnose(problem: Problem, causes: list[str] | None, n_jobs: int) -> Diagnosis:
     allowed = [e.cause for e in applicable(problem.kind)]
-    causes = allowed if causes is None else list(causes)
+    # A cause whose parameter is already a nuisance of every model is no candidate by default.
+    default = [c for c in allowed if EFFECTS[c].param not in problem.nuisance]
+    causes = default if causes is None else list(causes)
     bad = [c for c in causes if c not in allowed]
     if bad:
         raise ConfigError(
             f"cause(s) {', '.join(bad)} do not apply to kind {problem.kind!r}; applicable: {', '.join(allowed)}"
         )
     nominal = fit_model(problem)
-    nuisance = {k: v for k, v in nominal.values.items() if k.split("@")[0] in NUISANCE}
+    # Candidates start from the nominal model's initial states fitted with the encoder zeros held
+    # (freed zeros absorb what they can of the nominal model's error and shift the initial states;
+    # fit_model frees the zeros after the rest).
+    initial = nominal.values
+    if "theta_offset" in problem.nuisance:
+        params = _params(problem, (), {})
+        held = [p for p in params if p.key.split("@")[0] == "theta_offset"]
+        initial, _, _ = _solve(
+            problem,
+            [p for p in params if p not in held],
+            [rp.eval_idx for rp in problem.replays],
+            {p.key: p.start for p in held},
+            staged=True,
+        )
+    nuisance = {k: v for k, v in initial.items() if k.split("@")[0] in NUISANCE}
     pool = Parallel(n_jobs=n_jobs, prefer="threads")
     fits = pool(delayed(fit_model)(problem, (c,), nuisance) for c in causes)
     tests: dict[str, Any] = {"noise_floor": problem.floor}
@@ -781,7 +820,9 @@ def _diagnose(problem: Problem, causes: list[str] | None, n_jobs: int) -> Diagno
                 (single, c) for c in partners if not any({single.cause, c} == set(s.causes) | {p} for s, p in jobs)
             ]
         pairs = pool(
-            delayed(fit_model)(problem, s.causes + (c,), dict(nuisance, **s.values), _pair_starts(problem, s, singles[c]))
+            delayed(fit_model)(
+                problem, s.causes + (c,), _without_zeros(dict(nuisance, **s.values)), _pair_starts(problem, s, singles[c])
+            )
             for s, c in jobs
         )
         pair = min(pairs, key=_rank)
