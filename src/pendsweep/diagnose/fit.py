@@ -3,9 +3,13 @@
 One record or several records of one rig form a :class:`Problem`. Physical
 parameters (ModelParams fields) are shared by all records; measurement-chain
 parameters (``gain``, ``theta_offset``, ``tau``, ``gain_Fs``) and, on free
-decays, the initial angle and velocity belong to each record. Every model (the
+decays, the initial angle and velocity belong to each record (on several free
+decays also each record's encoder zero, fitted after the rest). Every model (the
 nominal included) is fitted with :func:`scipy.optimize.least_squares` on the
 compared samples (where the data move, see :class:`~.replay.Replay`).
+Several records are fitted in a canonical order (by content), shared
+parameters start from the median of the records' data-based starts, and ties
+are broken by name, so the verdict does not depend on the order of the files.
 
 Validation
 ----------
