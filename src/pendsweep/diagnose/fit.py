@@ -583,8 +583,7 @@ def failed_tests(judgement: dict[str, Any]) -> list[str]:
     against = j["against"]
     if j["explained_share"] < j["share_needed"]:
         out.append(
-            f"explains {j['explained_share']:.2f} of {against}'s excess squared error, "
-            f"{j['share_needed']:g} needed"
+            f"explains {j['explained_share']:.2f} of {against}'s excess squared error, {j['share_needed']:g} needed"
         )
     if not j["reduction"] > j["reduction_needed"]:
         out.append(f"reduction {j['reduction']:.3g} of {against}'s squared error below {j['reduction_needed']:.3g}")
@@ -727,9 +726,7 @@ class Diagnosis:
                 for c in self.candidates
             ],
             "second_round": self.second_round_note(),
-            "nuisance": {
-                k: v for k, v in self.verdict_fit.values.items() if k.split("@")[0] in self.problem.nuisance
-            },
+            "nuisance": {k: v for k, v in self.verdict_fit.values.items() if k.split("@")[0] in self.problem.nuisance},
         }
 
 
@@ -825,7 +822,10 @@ def _diagnose(problem: Problem, causes: list[str] | None, n_jobs: int) -> Diagno
             ]
         pairs = pool(
             delayed(fit_model)(
-                problem, s.causes + (c,), _without_zeros(dict(nuisance, **s.values)), _pair_starts(problem, s, singles[c])
+                problem,
+                s.causes + (c,),
+                _without_zeros(dict(nuisance, **s.values)),
+                _pair_starts(problem, s, singles[c]),
             )
             for s, c in jobs
         )
