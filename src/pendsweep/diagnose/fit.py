@@ -258,6 +258,12 @@ def start_value(replay: Replay, eff) -> float:
             # Large-amplitude period lengthening T = T0 (1 + A^2/16) of the pendulum.
             omega0 = 2.0 * math.pi / period * (1.0 + amp * amp / 32.0)
             return float(np.clip(replay.nominal["g"] / omega0**2, eff.lower, 10.0))
+    if eff.param == "theta_offset" and "theta" in replay.constant:
+        # A hanging pendulum rests at theta = 0 (its only equilibrium at rest), so a constant
+        # angle reading is the encoder zero itself. Started from 0, the fit must cross offsets
+        # whose replayed pendulum starts far enough from rest to swing up (a forced pendulum near
+        # its Hopf boundary), where least squares stalls.
+        return float(replay.meas["theta"][0])
     if eff.param == "tau" and replay.kind == "substructured":
         # The delay starts from the measured lag of x behind its command (peak of the
         # cross-correlation, refined by a parabola): a start near the optimum saves
@@ -529,7 +535,9 @@ def channel_ratios(problem: Problem, fit: Fit) -> dict[str, float]:
     out: dict[str, float] = {}
     for i, rp in enumerate(problem.replays):
         for c in rp.channels:
-            if c in EXACT_CHANNELS:
+            if c in EXACT_CHANNELS or c in rp.constant:
+                # A constant channel has no noise of its own: its level error counts in the pooled ratio,
+                # where its zero noise adds nothing to the floor.
                 continue
             ms = float(np.mean(fit.oof[i][c][rp.eval_idx] ** 2))
             noise2 = (rp.noise[c] / rp.scale[c]) ** 2

@@ -29,8 +29,9 @@
 Compared samples: the part of the record where the data move (a channel's
 peak-to-peak over :data:`MOTION_WINDOW` exceeds a few quantisation steps and
 noise levels, dilated by the window): a pendulum resting at the end of a free
-decay, or exactly constant through a forced record, carries no information and
-is left out. A channel constant over the whole record is not compared at all.
+decay, carries no information and is left out. A channel constant over the
+whole record (a pendulum resting through a forced test) is compared by its
+level: its residual is relative to the level and its noise is zero.
 The compared samples are cut into ``folds x BLOCKS_PER_FOLD`` contiguous
 blocks; fold ``k`` holds out blocks ``k, k + folds, ...`` (blocked
 cross-validation, see :mod:`pendsweep.diagnose.fit`).
@@ -117,16 +118,23 @@ class Replay:
         self.n = len(record.data)
         self.t = record.t - record.t[0]
         every = tuple(c for c in CHANNELS[record.kind] if c in record.data)
-        # A channel that never changes (a pendulum resting through a forced record) carries no information.
+        # A channel that never changes (a pendulum resting through a forced record) still says where
+        # it rests: it is compared by its level. Its error is relative to that level (a zero level
+        # takes unit scale) and its noise is zero (an exactly constant quantised reading), so a model
+        # that holds the level adds nothing to the error or to the noise floor, and one that cannot
+        # hold it (an encoder zero error) shows a discrepancy.
         self.constant = tuple(c for c in every if np.ptp(record.channel(c)) == 0.0)
-        self.channels = tuple(c for c in every if c not in self.constant)
-        if not self.channels:
+        if len(self.constant) == len(every):
             raise ConfigError(
                 f"{record.name}: every compared channel ({', '.join(every)}) is constant; nothing to compare"
             )
+        self.channels = every
         self.meas = {c: record.channel(c) for c in self.channels}
-        self.scale = {c: float(np.std(self.meas[c])) for c in self.channels}
-        self.noise = {c: noise_std(self.meas[c]) for c in self.channels}
+        self.scale = {
+            c: (abs(float(self.meas[c][0])) or 1.0) if c in self.constant else float(np.std(self.meas[c]))
+            for c in self.channels
+        }
+        self.noise = {c: 0.0 if c in self.constant else noise_std(self.meas[c]) for c in self.channels}
         self.folds = int(folds)
         # Substructured: the first samples replay commands from before the record (unknown).
         self.start = int(math.ceil(COMMAND_HISTORY / self.dt)) if self.kind == "substructured" else 0
@@ -247,6 +255,8 @@ class Replay:
         w = max(5, int(round(MOTION_WINDOW / self.dt)))
         mask = np.zeros(self.n, dtype=bool)
         for c in self.channels:
+            if c in self.constant:
+                continue
             x = self.meas[c]
             steps = np.abs(np.diff(x))
             quantum = float(steps[steps > 0].min()) if np.any(steps > 0) else 0.0

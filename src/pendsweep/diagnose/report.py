@@ -117,7 +117,7 @@ def _figures(diag: Diagnosis, outdir: Path) -> list[Path]:
         ax.legend(fontsize=7)
         k += 1
     ax, ax2 = axes[k], axes[k + 1]
-    if "theta" not in rp.meas:  # the pendulum never moved (a constant channel is not compared): no decay to show
+    if "theta" in rp.constant:  # the pendulum never moved (compared by its level only): no decay to show
         for a in (ax, ax2):
             a.text(0.5, 0.5, "theta constant: no swing", ha="center", va="center", transform=a.transAxes)
             a.set_axis_off()
@@ -206,7 +206,7 @@ def write_report(diag: Diagnosis, outdir: Path, source: str) -> list[Path]:
             f"{val['block_seconds']:.3g} s (fold k holds out blocks k, k + {val['folds']}, ...), over the "
             f"{val['compared_seconds']:.3g} s of the {val['record_seconds']:.3g} s record where the data move"
             + (
-                f"; constant channel(s) {', '.join(val['constant_channels'])} not compared"
+                f"; constant channel(s) {', '.join(val['constant_channels'])} compared by their level"
                 if val["constant_channels"]
                 else ""
             )
