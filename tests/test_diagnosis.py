@@ -72,6 +72,29 @@ def test_pendulum_at_rest_effect_found():
     assert js["explained_share"] > 0.9 and not js["unexplained"]
 
 
+@pytest.mark.parametrize(
+    "kind, offset, rate",
+    [("forced", 0.015, 500.0), ("forced", 0.02, 2000.0), ("substructured", 0.09, 500.0), ("substructured", 0.07, 2000.0)],
+)
+def test_encoder_zero_of_a_resting_pendulum_is_named(kind, offset, rate):
+    """A pendulum resting through the record reads its encoder zero: the constant angle is a
+    discrepancy of the nominal model (which rests at 0), named ``angle_offset`` within 2 mrad.
+
+    Before, the constant channel was dropped: forced records gave ``none`` (explained), and
+    substructured ones ``quadratic_drag`` with b3 some 10^5 x nominal, tied with the offset.
+    """
+    duration = (16.0 if kind == "forced" else 12.0) * (0.5 if rate > 1000 else 1.0)
+    case = Case(kind, {"angle_offset": offset}, rate=rate, seed=SEED + 7, theta_init=0.0, duration=duration)
+    d, js = run(case)
+    assert d.replay.constant == ("theta",) and js["validation"]["constant_channels"] == ["theta"]
+    assert js["cause"] == "angle_offset", js["cause"]
+    assert_estimates(js, case.effects)
+    assert js["explained_share"] > 0.9 and not js["unexplained"]
+    # The level is the encoder zero: no other single cause comes close.
+    runner_up = next(c for c in js["candidates"] if c["cause"] != "angle_offset" and "+" not in c["cause"])
+    assert runner_up["error_after"] > 10 * js["error_after"]
+
+
 def test_report_of_a_record_whose_pendulum_never_moves(tmp_path):
     """The report (figures and text) is written for the at-rest case too (theta is not compared)."""
     from pendsweep.diagnose.report import write_report
@@ -89,10 +112,17 @@ def test_report_of_a_record_whose_pendulum_never_moves(tmp_path):
 
 
 @pytest.mark.parametrize(
-    "kind, rate", [("free_decay", 500.0), ("forced", 2000.0), ("substructured", 500.0), ("forced", 500.0)]
+    "kind, rate, at_rest",
+    [
+        ("free_decay", 500.0, False),
+        ("forced", 2000.0, False),
+        ("substructured", 500.0, False),
+        ("forced", 500.0, True),
+        ("substructured", 2000.0, True),
+    ],
 )
-def test_clean_records_give_none_and_nothing_unexplained(kind, rate):
-    theta_init = 0.0 if (kind, rate) == ("forced", 500.0) else (1.0 if kind == "free_decay" else 0.3)
+def test_clean_records_give_none_and_nothing_unexplained(kind, rate, at_rest):
+    theta_init = 0.0 if at_rest else (1.0 if kind == "free_decay" else 0.3)
     duration = 6.0 if rate > 1000 else (12.0 if kind == "substructured" else 16.0)
     d, js = run(Case(kind, rate=rate, seed=SEED + 1, theta_init=theta_init, duration=duration))
     assert js["cause"] == "none" and js["estimate"] == {} and js["gain"] == 0.0
