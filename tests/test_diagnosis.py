@@ -95,6 +95,19 @@ def test_encoder_zero_of_a_resting_pendulum_is_named(kind, offset, rate):
     assert runner_up["error_after"] > 10 * js["error_after"]
 
 
+def test_implausible_estimate_is_not_named():
+    """A resting pendulum's encoder zero with only the pendulum damping laws as candidates: quadratic
+    drag absorbs it with b3 some 10^5 x nominal. That estimate is rejected as implausible, and what
+    remains is flagged (before: ``quadratic_drag`` named, nothing unexplained)."""
+    case = Case("substructured", {"angle_offset": 0.09}, rate=500.0, seed=SEED + 8, theta_init=0.0, duration=12.0)
+    d = diagnose(Replay(generate(case)), ["quadratic_drag", "viscous_damping", "coulomb_friction"])
+    js = d.to_json()
+    drag = next(c for c in js["candidates"] if c["cause"] == "quadratic_drag")
+    assert drag["estimate"]["b3"] > 1000 * EFFECTS["quadratic_drag"].scale  # the absurd fit is still reported
+    assert drag["status"] == "rejected" and "implausible" in drag["reasons"][0]
+    assert js["cause"] != "quadratic_drag" and js["unexplained"] is True
+
+
 def test_report_of_a_record_whose_pendulum_never_moves(tmp_path):
     """The report (figures and text) is written for the at-rest case too (theta is not compared)."""
     from pendsweep.diagnose.report import write_report

@@ -93,6 +93,12 @@ UNEXPLAINED_RATIO = {"free_decay": 3.0, "forced": 30.0, "substructured": 4.5}
 #: One sensor channel's cross-validated mean square above this multiple of its own noise variance
 #: is a structured residual too (kinds whose pooled floor one noisy channel dominates).
 CHANNEL_RATIO = {"substructured": 60.0}
+#: An estimate more than this factor from its nonzero nominal is physically implausible: the cause
+#: is not named (its parameter is absorbing something else). The identifiable ranges are 1.03-8 x
+#: nominal; on the calibration range A the largest ratio of any best or runner-up single cause was
+#: 8.2 (of any pair's 32), on the three real records 76 (b3); a resting pendulum's encoder zero,
+#: before its constant angle was compared, was absorbed by b3 at 2.8e5 x nominal.
+IMPLAUSIBLE_FACTOR = 1000.0
 #: Channels recorded exactly (the controller's own command): no sensor noise to compare with.
 EXACT_CHANNELS = ("y_cmd",)
 #: Scales of the free-decay nuisance parameters [rad], [rad/s].
@@ -555,6 +561,21 @@ def structured_residual(problem: Problem, fit: Fit, pooled_ratio: float) -> bool
     return limit is not None and any(r > limit for r in channel_ratios(problem, fit).values())
 
 
+def implausible(problem: Problem, fit: Fit) -> list[str]:
+    """Why ``fit``'s estimates are physically implausible (empty when they are not): a parameter more
+    than :data:`IMPLAUSIBLE_FACTOR` times its nonzero nominal."""
+    out = []
+    for c in fit.causes:
+        for k in fit.keys_of(c):
+            nominal, value = problem.nominal_of(k), fit.values[k]
+            if nominal != 0.0 and abs(value) > IMPLAUSIBLE_FACTOR * abs(nominal):
+                out.append(
+                    f"{c}: estimate {value:.3g} is {value / nominal:.3g} x its nominal {nominal:.3g}, "
+                    f"beyond {IMPLAUSIBLE_FACTOR:g} x (physically implausible)"
+                )
+    return out
+
+
 def _judge(problem: Problem, base: Fit, model: Fit, share_min: float, causes: tuple[str, ...]) -> dict[str, Any]:
     """The three tests of ``model`` against ``base``; ``passed`` says whether all hold."""
     floor2 = problem.floor**2
@@ -652,6 +673,8 @@ class Diagnosis:
         """Whether ``fit`` was named, rejected (and which tests failed) or not judged (and why)."""
         if fit.cause == self.cause:
             return "named", []
+        if fit.cause in self.tests.get("implausible", {}):
+            return "rejected", self.tests["implausible"][fit.cause]
         first, second = self.tests.get("first_round"), self.tests.get("second_round")
         for j in (first, second):
             if j is not None and j["model"] == fit.cause:
@@ -676,6 +699,29 @@ class Diagnosis:
         if "second_round" in self.tests:
             return "run"
         return "not run: the best single cause leaves no structured residual (or only one candidate)"
+
+    def tied_with(self) -> list[str]:
+        """Causes (of the verdict's round) that predict the held-out blocks about as well as the verdict.
+
+        A candidate of as many causes as the verdict's, with plausible estimates, that explains at
+        least :data:`SHARE_MIN` of the nominal's excess, and that the verdict does not beat on the
+        held-out blocks (one-sided signed-rank test, p >= :data:`P_VALUE`): the data do not tell
+        them apart, whatever the ranking by cross-validated error says.
+        """
+        best = self.best
+        if best is None:
+            return []
+        excess = self.nominal.error_cv**2 - self.noise_floor**2
+        out = []
+        for c in self.candidates:
+            if c is best or len(c.causes) != len(best.causes) or not math.isfinite(c.error_cv):
+                continue
+            if c.cause in self.tests.get("implausible", {}) or excess <= 0:
+                continue
+            share = (self.nominal.error_cv**2 - c.error_cv**2) / excess
+            if share >= SHARE_MIN and block_test(c, best) >= P_VALUE:
+                out.append(c.cause)
+        return out
 
     @property
     def unexplained(self) -> bool:
@@ -717,6 +763,7 @@ class Diagnosis:
             "gain": 1.0 - self.error_after / before if best and before > 0 else 0.0,
             "explained_share": self.explained_share,
             "unexplained": self.unexplained,
+            "tied_with": self.tied_with(),
             "residual_to_noise": channel_ratios(self.problem, self.verdict_fit),
             "noise_floor": self.noise_floor,
             "validation": self.validation(),
@@ -806,7 +853,11 @@ def _diagnose(problem: Problem, causes: list[str] | None, n_jobs: int) -> Diagno
     fits = pool(delayed(fit_model)(problem, (c,), nuisance) for c in causes)
     tests: dict[str, Any] = {"noise_floor": problem.floor}
     verdict = "none"
-    first = min(fits, key=_rank) if fits else None
+    # A cause whose estimate is physically implausible is absorbing something else: it is not named,
+    # nor started from in the second round (its status says why).
+    tests["implausible"] = {f.cause: r for f in fits if (r := implausible(problem, f))}
+    plausible = [f for f in fits if f.cause not in tests["implausible"]]
+    first = min(plausible, key=_rank) if plausible else None
     if first is not None:
         tests["first_round"] = _judge(problem, nominal, first, SHARE_MIN, first.causes)
         if tests["first_round"]["passed"]:
@@ -816,7 +867,7 @@ def _diagnose(problem: Problem, causes: list[str] | None, n_jobs: int) -> Diagno
     # single cause of a two-effect record need not be one of the two).
     if first is not None and len(causes) > 1 and structured_residual(problem, first, SECOND_ROUND_RATIO):
         singles = {f.causes[0]: f for f in fits}
-        ranked = sorted(fits, key=_rank)[:BEAM]
+        ranked = sorted(plausible, key=_rank)[:BEAM]
         jobs, tests["partner_scores"] = [], {}
         for single in ranked:
             others = [c for c in causes if c != single.cause]
@@ -837,7 +888,8 @@ def _diagnose(problem: Problem, causes: list[str] | None, n_jobs: int) -> Diagno
             )
             for s, c in jobs
         )
-        pair = min(pairs, key=_rank)
+        tests["implausible"].update({f.cause: r for f in pairs if (r := implausible(problem, f))})
+        pair = min([f for f in pairs if f.cause not in tests["implausible"]] or pairs, key=_rank)
         # Judged against the better of its own two single causes.
         base = min((singles[c] for c in pair.causes), key=_rank)
         second = _judge(problem, base, pair, SECOND_SHARE_MIN, pair.causes)
@@ -854,7 +906,7 @@ def _diagnose(problem: Problem, causes: list[str] | None, n_jobs: int) -> Diagno
             chain_ok = pair.error_cv**2 < chained.error_cv**2 - 0.5 * (base.error_cv**2 - pair.error_cv**2)
         second["chain_ok"] = chain_ok
         tests["second_round"] = second
-        if second["passed"] and against_nominal["passed"] and chain_ok:
+        if second["passed"] and against_nominal["passed"] and chain_ok and pair.cause not in tests["implausible"]:
             verdict = pair.cause
         fits += pairs
     fits.sort(key=_rank)
