@@ -403,6 +403,7 @@ def test_cli_synth_diagnose_report(tmp_path):
         "candidates",
         "explained_share",
         "unexplained",
+        "tied_with",
         "residual_to_noise",
         "noise_floor",
         "validation",
