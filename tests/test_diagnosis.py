@@ -74,7 +74,12 @@ def test_pendulum_at_rest_effect_found():
 
 @pytest.mark.parametrize(
     "kind, offset, rate",
-    [("forced", 0.015, 500.0), ("forced", 0.02, 2000.0), ("substructured", 0.09, 500.0), ("substructured", 0.07, 2000.0)],
+    [
+        ("forced", 0.015, 500.0),
+        ("forced", 0.02, 2000.0),
+        ("substructured", 0.09, 500.0),
+        ("substructured", 0.07, 2000.0),
+    ],
 )
 def test_encoder_zero_of_a_resting_pendulum_is_named(kind, offset, rate):
     """A pendulum resting through the record reads its encoder zero: the constant angle is a

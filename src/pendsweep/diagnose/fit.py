@@ -42,6 +42,10 @@ nominal model (``b``: base, ``m``: model, ``f``: noise floor):
 3. its parameter stands out of its jackknife uncertainty, ``z >= Z_MIN``, with
    the same sign of the change in every fold.
 
+A candidate whose estimate lies more than ``IMPLAUSIBLE_FACTOR`` times from its
+nonzero nominal is not named (it absorbs something else); candidates that the
+verdict does not beat on the held-out blocks are reported in ``tied_with``.
+
 A second cause joins the best single one only when the pair passes the same
 three tests against the single cause (``SECOND_SHARE_MIN`` of the single's
 excess), each of the two parameters separately, and, on substructured records,

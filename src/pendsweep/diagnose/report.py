@@ -10,7 +10,7 @@ import numpy as np
 
 from ..data import UNITS
 from .effects import EFFECTS, model_file, split_values
-from .fit import CHANNEL_RATIO, UNEXPLAINED_RATIO, Diagnosis
+from .fit import CHANNEL_RATIO, P_VALUE, UNEXPLAINED_RATIO, Diagnosis
 from .signatures import backbone, cross_correlation, extrema, residual_spectrum, summarize
 
 #: A runner-up whose held-out error is within this factor of the best's is reported as not distinguishable.
@@ -285,6 +285,13 @@ def write_report(diag: Diagnosis, outdir: Path, source: str) -> list[Path]:
             lines.append(
                 f"- `{rec_name}` {c}: rms {_fmt(e['rms'])}, lag-1 {_fmt(e['lag1'])}; peaks {peaks}; corr {corr}"
             )
+    tied = diag.tied_with()
+    if tied:
+        lines += [
+            "",
+            f"Tied with: {', '.join(f'`{t}`' for t in tied)} (the verdict does not beat them on the held-out "
+            f"blocks, signed-rank p >= {P_VALUE:g}; the data do not tell them apart).",
+        ]
     amb = ambiguous_with(diag)
     if amb:
         lines += [
