@@ -201,12 +201,12 @@ def run_scan(
     pendsweep.results.OutputLocked
         Another process is writing ``output``.
     """
-    from .results import ResultStore
+    from .results import ResultStore, concat_rows, sort_rows
 
     check_jobs(n_jobs)
     check_work(scan.work(), max_work)
     if output is None:
-        rows = _run(scan, None, Finished(_no_rows(), {}), n_jobs, progress, executor)
+        rows = _run(scan, None, Finished(concat_rows([]), {}), n_jobs, progress, executor)
     else:
         store = ResultStore(output, scan.metadata(), scan.row_columns, overwrite=overwrite)
         try:
@@ -217,15 +217,7 @@ def run_scan(
             store.close()
     if as_frame:
         return scan.order(rows.to_pandas())
-    from .results import sort_rows
-
     return sort_rows(rows, list(scan.row_columns))
-
-
-def _no_rows() -> pa.Table:
-    import pyarrow as pa
-
-    return pa.table({})
 
 
 def _run(scan: Scan, store: ResultStore | None, finished: Finished, n_jobs, progress, executor) -> pa.Table:

@@ -176,13 +176,15 @@ def run_lanes(
     sorted by steps per period and length here and the indices remapped. Returns the :class:`BatchRun` (records ``(n, record_periods, 8)``) and the
     twins' log-stretch samples ``(n, stretch_periods)``, NaN where none, in
     the order of ``params``. A twin and its partner are kept in one chunk.
+    Raises ``ValueError`` when a lane would record more than
+    ``record_periods`` periods or a twin run longer than ``stretch_periods``.
     """
     n = len(params)
     total = np.asarray(lanes.total, dtype=np.int64)
-    twins = np.asarray(lanes.partner) >= 0
+    partner = np.asarray(lanes.partner, dtype=np.int64)
     if n and (total - np.asarray(lanes.transient)).max() > int(record_periods):
         raise ValueError(f"a lane records more than record_periods = {record_periods} periods")
-    if twins.any() and total[twins].max() > int(stretch_periods):
+    if (partner >= 0).any() and total[partner >= 0].max() > int(stretch_periods):
         raise ValueError(f"a twin runs more than stretch_periods = {stretch_periods} periods")
     states = np.asarray(states, dtype=np.float64).reshape(n, 4)
     records = np.full((n, int(record_periods), N_RECORD_COLUMNS), np.nan)
@@ -192,12 +194,11 @@ def run_lanes(
     if n == 0:
         return BatchRun(records, states.copy(), status, done), stretch
     steps = np.array([steps_per_period(q.fe, dt) for q in params], dtype=np.int64)
-    partner = np.asarray(lanes.partner, dtype=np.int64)
     # Lanes sorted by steps per period (chunks share forcing tables), then by
     # length, so that a chunk's lanes finish together (its dead lanes are
     # still stepped until its longest one ends); each twin right after its partner.
     head = np.where(partner >= 0, partner, np.arange(n))
-    order = np.lexsort((partner >= 0, head, np.asarray(lanes.total)[head], steps))
+    order = np.lexsort((partner >= 0, head, total[head], steps))
     position = np.empty(n, dtype=np.int64)
     position[order] = np.arange(n)
     sorted_partner = np.where(partner[order] >= 0, position[np.maximum(partner[order], 0)], -1)
@@ -220,13 +221,14 @@ def run_lanes(
     dn = np.zeros(n, dtype=np.int64)
     with _LAUNCH:
         previous = nb.get_num_threads()
+        wanted = max(1, min(int(threads or previous), nb.config.NUMBA_NUM_THREADS))
         # A small launch is still split over the threads, in whole vector groups
         # (each chunk is padded to one): 27 lanes on 2 threads run as 16 + 11, not 27.
-        per_thread = -(-n // max(1, min(int(threads or previous), nb.config.NUMBA_NUM_THREADS)))
+        per_thread = -(-n // wanted)
         chunk = min(int(chunk), max(LANE_GROUP, -(-per_thread // LANE_GROUP) * LANE_GROUP))
         bounds = keep_twins_together(chunk_bounds(sorted_steps, chunk), sorted_partner)
         # No more threads than chunks: an idle thread only waits at the barrier.
-        nb.set_num_threads(max(1, min(int(threads or previous), nb.config.NUMBA_NUM_THREADS, len(bounds) - 1)))
+        nb.set_num_threads(min(wanted, len(bounds) - 1))
         # Chunk costs differ (lanes finish or diverge early, steps differ): threads take
         # chunks one at a time instead of a fixed share each.
         previous_chunksize = nb.set_parallel_chunksize(1)

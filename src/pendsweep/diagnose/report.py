@@ -103,7 +103,8 @@ def _figures(diag: Diagnosis, outdir: Path) -> list[Path]:
     ax.set_xlim(0, min(20.0, 0.5 / rp.dt))
     ax.set_xlabel("f [Hz]")
     ax.set_title("spectra of residual / std(channel)", fontsize=9)
-    ax.legend(fontsize=7)
+    if ax.get_legend_handles_labels()[0]:  # no curve when every residual is non-finite
+        ax.legend(fontsize=7)
     k = 1
     if rp.kind != "free_decay":
         ax = axes[k]
@@ -114,7 +115,8 @@ def _figures(diag: Diagnosis, outdir: Path) -> list[Path]:
                 ax.plot(xc.lag, xc["corr"], label=c)
         ax.set_xlabel("lag [s]")
         ax.set_title("corr(nominal residual, Fe)", fontsize=9)
-        ax.legend(fontsize=7)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=7)
         k += 1
     ax, ax2 = axes[k], axes[k + 1]
     if "theta" in rp.constant:  # the pendulum never moved (compared by its level only): no decay to show
