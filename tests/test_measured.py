@@ -210,8 +210,6 @@ def test_pendulum_damping_is_named_as_damping_family(kind, factor, min_gain):
     a hidden viscous term is named as one of the three damping laws, and the report flags the tie.
     On substructured records the gain is small: y, y_cmd and Fs, which the pendulum damping
     hardly moves, dominate the error (documented limitation)."""
-    from pendsweep.diagnose.report import ambiguous_with
-
     rec = synthesize(
         kind,
         FIG9_PO,
@@ -226,7 +224,7 @@ def test_pendulum_damping_is_named_as_damping_family(kind, factor, min_gain):
     d = diagnose(Replay(rec))
     family = {"coulomb_friction", "viscous_damping", "quadratic_drag"}
     assert d.cause in family and d.to_json()["gain"] >= min_gain
-    assert set(ambiguous_with(d)) & family
+    assert set(d.tied_with()) & family
 
 
 @pytest.mark.parametrize(

@@ -13,9 +13,6 @@ from .effects import EFFECTS, model_file, split_values
 from .fit import CHANNEL_RATIO, P_VALUE, UNEXPLAINED_RATIO, Diagnosis
 from .signatures import backbone, cross_correlation, extrema, residual_spectrum, summarize
 
-#: A runner-up whose held-out error is within this factor of the best's is reported as not distinguishable.
-AMBIGUOUS_RATIO = 1.1
-
 
 def extended_params(diag: Diagnosis) -> dict[str, float]:
     """The extended model as a JSON-able mapping of ModelParams fields.
@@ -35,24 +32,6 @@ def extended_params(diag: Diagnosis) -> dict[str, float]:
             values["C"] = diag.replay.nominal["C"] - diag.replay.nominal["C2"] + values["C2"]
     model, _ = split_values(values)
     return model_file(model)
-
-
-def ambiguous_with(diag: Diagnosis) -> list[str]:
-    """Runner-up causes (of the same round) that predict the held-out part about as well as the best."""
-    best = diag.best or (diag.candidates[0] if diag.candidates else None)
-    if best is None:
-        return []
-    floor = diag.noise_floor
-    # Compare the errors in excess of the noise floor.
-    excess = math.sqrt(max(best.error_after**2 - floor**2, 0.0))
-    return [
-        c.cause
-        for c in diag.candidates
-        if c is not best
-        and len(c.causes) == len(best.causes)
-        and math.sqrt(max(c.error_after**2 - floor**2, 0.0)) <= AMBIGUOUS_RATIO * excess + 0.1 * floor
-        and c.error_after < diag.nominal.error_after
-    ]
 
 
 def _figures(diag: Diagnosis, outdir: Path) -> list[Path]:
@@ -291,15 +270,9 @@ def write_report(diag: Diagnosis, outdir: Path, source: str) -> list[Path]:
     if tied:
         lines += [
             "",
-            f"Tied with: {', '.join(f'`{t}`' for t in tied)} (the verdict does not beat them on the held-out "
-            f"blocks, signed-rank p >= {P_VALUE:g}; the data do not tell them apart).",
-        ]
-    amb = ambiguous_with(diag)
-    if amb:
-        lines += [
-            "",
-            f"Not distinguishable on this record from: {', '.join(f'`{a}`' for a in amb)} "
-            "(cross-validated errors within 10% above the noise floor). A record with more amplitude range or a second forcing tone separates them.",
+            f"Not distinguishable on this record from: {', '.join(f'`{t}`' for t in tied)} (the verdict does "
+            f"not beat them on the held-out blocks, signed-rank p >= {P_VALUE:g}). A record with more "
+            "amplitude range or a second forcing tone separates them.",
         ]
     lines += [
         "",
