@@ -45,7 +45,10 @@ def _parts(out: Path) -> list[Path]:
 
 def _kill_after_parts(args: list[str], out: Path, min_parts: int = 1) -> None:
     """Start a real `pendsweep` process, SIGKILL it once ``min_parts`` parts exist, check it died mid-run."""
-    proc = subprocess.Popen(CLI + args, env=ENV, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    # a part per unit: the kill lands mid-run however fast the machine
+    proc = subprocess.Popen(
+        CLI + args + ["--checkpoint-seconds", "0"], env=ENV, stdout=subprocess.PIPE, stderr=subprocess.PIPE
+    )
     deadline = time.time() + 120
     while time.time() < deadline and len(_parts(out)) < min_parts and proc.poll() is None:
         time.sleep(0.01)

@@ -196,6 +196,8 @@ def test_killed_sweep_resumes_without_loss_or_duplication(tmp_path):
         "-o",
         str(out),
         "--no-progress",
+        "--checkpoint-seconds",
+        "0",  # a part per point: the kill lands mid-run however fast the machine
     ]
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     proc = subprocess.Popen(args, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE)

@@ -768,13 +768,14 @@ def run_basins(
     executor=None,
     chunk_starts: int = CHUNK_STARTS,
     max_work: float | None = None,
+    checkpoint_seconds: float = 1.0,
 ) -> pd.DataFrame:
     """Run (or resume) a basin computation; return one row per (point, start).
 
     Starts go in units of ``chunk_starts`` (one parameter point each), run
-    by the scan engine (:func:`pendsweep.scan.run_scan`): a finished unit is
-    persisted at once through :class:`~pendsweep.results.ResultStore`, so a
-    rerun of the same configuration skips it. On the emulated backend a
+    by the scan engine (:func:`pendsweep.scan.run_scan`): finished units are
+    persisted through :class:`~pendsweep.results.ResultStore` at least every
+    ``checkpoint_seconds`` s, so a rerun of the same configuration skips it. On the emulated backend a
     unit runs the batched kernel on all cores (units one after another
     locally, in parallel on Dask); on other backends a unit's starts run on
     ``n_jobs`` threads. ``max_work`` limits the work estimate, an upper
@@ -784,7 +785,14 @@ def run_basins(
 
     scan = BasinScan(config, chunk_starts)
     return run_scan(
-        scan, output, n_jobs=n_jobs, progress=progress, overwrite=overwrite, executor=executor, max_work=max_work
+        scan,
+        output,
+        n_jobs=n_jobs,
+        progress=progress,
+        overwrite=overwrite,
+        executor=executor,
+        max_work=max_work,
+        checkpoint_seconds=checkpoint_seconds,
     )
 
 

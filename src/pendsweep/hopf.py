@@ -608,6 +608,7 @@ def run_hopf(
     overwrite: bool = False,
     executor: Executor | None = None,
     max_work: float | None = DEFAULT_MAX_WORK,
+    checkpoint_seconds: float = 1.0,
 ) -> pd.DataFrame:
     """Run (or resume) a Hopf-boundary scan; one row per (M, omega_hat, method).
 
@@ -617,7 +618,8 @@ def run_hopf(
     Persistence, resuming and progress are those of every scan
     (:func:`pendsweep.scan.run_scan`, keyed by ``mass_point, point,
     method``). Scans whose work estimate (:meth:`HopfScan.work`) exceeds
-    ``max_work`` integration steps are refused (None: no limit). Returns the
+    ``max_work`` integration steps are refused (None: no limit); finished
+    rows are written at least every ``checkpoint_seconds`` s. Returns the
     rows sorted by mass, omega_hat and method order.
     """
     return run_scan(
@@ -628,6 +630,7 @@ def run_hopf(
         overwrite=overwrite,
         executor=executor,
         max_work=max_work,
+        checkpoint_seconds=checkpoint_seconds,
     )
 
 

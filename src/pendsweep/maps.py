@@ -213,12 +213,14 @@ def run_map(
     executor=None,
     chunk_cells: int = CHUNK_STARTS,
     max_work: float | None = None,
+    checkpoint_seconds: float = 1.0,
 ) -> pd.DataFrame:
     """Run (or resume) a two-parameter map; one row per grid cell.
 
     Cells go in units of ``chunk_cells``, each on the batched kernel with
     all cores, run by the scan engine (:func:`pendsweep.scan.run_scan`):
-    finished units are persisted and skipped on a rerun. ``max_work``
+    finished units are persisted (at least every ``checkpoint_seconds`` s)
+    and skipped on a rerun. ``max_work``
     limits the work estimate (every cell to the cap); None: no limit.
     """
     from .scan import run_scan
@@ -230,6 +232,7 @@ def run_map(
         overwrite=overwrite,
         executor=executor,
         max_work=max_work,
+        checkpoint_seconds=checkpoint_seconds,
     )
 
 

@@ -491,6 +491,7 @@ def run_sweep(
     task_points: int = 256,
     max_work: float | None = DEFAULT_MAX_WORK,
     as_frame: bool = True,
+    checkpoint_seconds: float = 1.0,
 ) -> pd.DataFrame | pa.Table:
     """Run (or resume) a sweep and return its long-form results.
 
@@ -517,6 +518,10 @@ def run_sweep(
     as_frame : bool
         False: return a pyarrow Table (same rows and order) instead of a
         DataFrame, as the command line does.
+    checkpoint_seconds : float
+        With ``output``: write finished points to the parts directory at least
+        this often, in seconds (0: after every point or branch; a killed sweep
+        loses at most this much work).
 
     Returns
     -------
@@ -533,6 +538,7 @@ def run_sweep(
         executor=executor,
         max_work=max_work,
         as_frame=as_frame,
+        checkpoint_seconds=checkpoint_seconds,
     )
 
 

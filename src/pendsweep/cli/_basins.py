@@ -15,7 +15,7 @@ from ..errors import ConfigError, ParameterError
 from ..params import PARAM_SPECS
 from ._app import FINITE, LazyChoice, main
 from ._checks import FIGURE_SUFFIXES, check_output, key_values
-from ._executor import apply_options, executor_options
+from ._executor import apply_options, checkpoint_option, executor_options
 from ._sweep import DEVICE_OPTION, load_model_file
 
 _MODEL_FLAGS = (("alpha", "alpha", "N"), ("fe", "fe", "Hz"), ("M", "M_", "kg"), ("C", "C_", "kg/s"), ("K", "K_", "N/m"))
@@ -199,6 +199,7 @@ def _progress(flag: bool | None) -> bool:
     help="Basin map and survival curves (one value) or stacked fractions (a range).",
 )
 @click.option("--overwrite", is_flag=True, help="Replace earlier results at --output instead of resuming.")
+@checkpoint_option()
 @click.option(
     "--progress/--no-progress", default=None, help="Progress bar on stderr (default: when stderr is a terminal)."
 )
@@ -274,6 +275,7 @@ def basins_command(parameter, start, stop, step, points, **kw):
             progress=_progress(kw["progress"]),
             overwrite=kw["overwrite"],
             executor=runner,
+            checkpoint_seconds=kw["checkpoint_seconds"],
         )
     finally:
         runner.close()
@@ -376,6 +378,7 @@ def _rewrite_with_attractors(output: Path, rows) -> None:
     help="Image of the motion class and max|theta| with the Hopf boundaries.",
 )
 @click.option("--overwrite", is_flag=True, help="Replace earlier results at --output instead of resuming.")
+@checkpoint_option()
 @click.option(
     "--progress/--no-progress", default=None, help="Progress bar on stderr (default: when stderr is a terminal)."
 )
@@ -417,7 +420,14 @@ def map_command(x, y, **kw):
     t0 = time.perf_counter()
     runner = make_executor(kw["executor"], kw["scheduler"])
     try:
-        df = run_map(config, output, progress=_progress(kw["progress"]), overwrite=kw["overwrite"], executor=runner)
+        df = run_map(
+            config,
+            output,
+            progress=_progress(kw["progress"]),
+            overwrite=kw["overwrite"],
+            executor=runner,
+            checkpoint_seconds=kw["checkpoint_seconds"],
+        )
     finally:
         runner.close()
     counts = ", ".join(f"{n} {m}" for m, n in df["motion"].value_counts().items())

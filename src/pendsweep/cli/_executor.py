@@ -50,6 +50,18 @@ def max_work(limit: float, yes: bool) -> float | None:
     return None if yes else limit
 
 
+def checkpoint_option() -> Callable:
+    """click option ``--checkpoint-seconds S``: how often a resumable scan persists finished units."""
+    return click.option(
+        "--checkpoint-seconds",
+        type=click.FloatRange(min=0),
+        default=1.0,
+        show_default=True,
+        help="Write finished units to <output>.parts at least this often, s (0: after every unit); "
+        "a killed run resumes from there.",
+    )
+
+
 def apply_options(options: list[Callable]) -> Callable:
     """Decorator applying a list of click options in order."""
 

@@ -13,7 +13,7 @@ from ..params import ENCODER_RESOLUTION
 from ..sweepfile import MAX_POINTS
 from ._app import PATH, SMALL_ANGLE, FiniteFloat, LazyChoice, main
 from ._checks import check_output, key_values, model_sets
-from ._executor import apply_options, executor_options, work_options
+from ._executor import apply_options, checkpoint_option, executor_options, work_options
 from ._sweep import DEVICE_OPTION, prepare_output
 
 #: Model parameters the scan itself sets: alpha is searched, fe follows --what, M is --M.
@@ -129,6 +129,7 @@ def _all_methods() -> str:
 )
 @click.option("-j", "--jobs", type=int, default=-1, show_default=True, help="Parallel workers (-1: all cores).")
 @click.option("--overwrite", is_flag=True, help="Discard earlier results at --output instead of resuming.")
+@checkpoint_option()
 @click.option(
     "--progress/--no-progress", default=None, help="Progress bar on stderr (default: when stderr is a terminal)."
 )
@@ -156,6 +157,7 @@ def hopf(
     output,
     jobs,
     overwrite,
+    checkpoint_seconds,
     progress,
     executor,
     scheduler,
@@ -202,6 +204,7 @@ def hopf(
             overwrite=overwrite,
             executor=runner,
             max_work=None if yes else max_work,
+            checkpoint_seconds=checkpoint_seconds,
         )
     finally:
         runner.close()

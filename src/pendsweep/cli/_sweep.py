@@ -17,7 +17,7 @@ from ..params import PARAM_SPECS, ModelParams
 from ..sweepfile import MAX_POINTS, MAX_STARTS, describe_count, grid_size
 from ._app import ANGLE, FINITE, PATH, PERIODS, RATE, SEED, SMALL_ANGLE, STEP_S, LazyChoice, given, main
 from ._checks import FIGURE_SUFFIXES, check_input, check_output, check_output_dir, key_values, model_sets
-from ._executor import apply_options, executor_options, max_work, work_options
+from ._executor import apply_options, checkpoint_option, executor_options, max_work, work_options
 
 
 def load_model_file(path: Path) -> dict[str, float]:
@@ -228,6 +228,7 @@ def sweep_options(default_step: float, unit: str):
                 help="Results file, .parquet (default results/<parameter>.parquet, replaced when it holds another configuration).",
             ),
             click.option("--overwrite", is_flag=True, help="Replace earlier results at --output instead of resuming."),
+            checkpoint_option(),
             click.option(
                 "--plot",
                 "plot_path",
@@ -373,6 +374,7 @@ def execute(
     scheduler: str | None = None,
     default_output: bool = False,
     work_limit: float | None = None,
+    checkpoint_seconds: float = 1.0,
 ) -> None:
     """Run a sweep (on ``executor``), print a summary, optionally plot.
 
@@ -403,6 +405,7 @@ def execute(
             executor=runner,
             max_work=work_limit,
             as_frame=False,
+            checkpoint_seconds=checkpoint_seconds,
         )
     finally:
         runner.close()
@@ -430,7 +433,7 @@ def unit_summary(rows) -> str:
 def _run_options(kw: dict[str, Any]) -> dict[str, Any]:
     return dict(jobs=kw["jobs"], overwrite=kw["overwrite"], progress=kw["progress"], plot_path=kw["plot_path"],
                 executor=kw["executor"], scheduler=kw["scheduler"], default_output=kw["output"] is None,
-                work_limit=max_work(kw["max_work"], kw["yes"]))  # fmt: skip
+                work_limit=max_work(kw["max_work"], kw["yes"]), checkpoint_seconds=kw["checkpoint_seconds"])  # fmt: skip
 
 
 def _sweep_command(name: str, parameter: str, default_step: float, help_text: str):
