@@ -11,6 +11,7 @@ calibration range (A) only.
 
 import itertools
 import json
+import math
 
 import numpy as np
 import pytest
@@ -21,6 +22,7 @@ from pendsweep.data import find_free_swing_data, read_record, write_record
 from pendsweep.diagnose import EFFECTS, Replay, diagnose
 from pendsweep.diagnose.fit import Fit, block_test
 from pendsweep.diagnose.testbench import CALIBRATION_SEEDS, TEST_SEEDS, Case, generate, truth_value
+from pendsweep.params import ENCODER_RESOLUTION
 
 SEED = TEST_SEEDS[0] + 101
 _real = find_free_swing_data()
@@ -95,6 +97,11 @@ def test_encoder_zero_of_a_resting_pendulum_is_named(kind, offset, rate):
     assert js["cause"] == "angle_offset", js["cause"]
     assert_estimates(js, case.effects)
     assert js["explained_share"] > 0.9 and not js["unexplained"]
+    # Known only to the reading's quantisation (half a step, uniform), which the stated one-sigma
+    # uncertainty carries (before: 1e-9 to 3e-6 rad while the estimate was up to 0.6 mrad off).
+    sigma = js["uncertainty"]["theta_offset"]
+    assert sigma >= ENCODER_RESOLUTION / math.sqrt(12)
+    assert abs(js["estimate"]["theta_offset"] - offset) <= 2 * sigma
     # The level is the encoder zero: no other single cause comes close.
     runner_up = next(c for c in js["candidates"] if c["cause"] != "angle_offset" and "+" not in c["cause"])
     assert runner_up["error_after"] > 10 * js["error_after"]

@@ -461,6 +461,12 @@ def fit_model(
         if len(reps) >= 2:
             jk = math.sqrt((len(reps) - 1) / len(reps) * float(np.sum((reps - reps.mean()) ** 2)))
             stderr[p.key] = max(stderr[p.key], jk)
+        # An encoder zero read off resting (constant) angles is known to the reading's quantisation
+        # at best, however well the fit reproduces the level.
+        if p.key.split("@")[0] == "theta_offset":
+            resting = [rp for i, rp in enumerate(rps) if p.record in (None, i)]
+            if all("theta" in rp.level_uncertainty for rp in resting):
+                stderr[p.key] = max(stderr[p.key], max(rp.level_uncertainty["theta"] for rp in resting))
     block_mse, record_cv, sq_all = [], [], []
     for i, rp in enumerate(rps):
         # Compared samples of a diverged prediction are NaN: infinite error there.

@@ -48,7 +48,7 @@ from scipy.signal import savgol_filter
 from ..data import Record
 from ..errors import ConfigError
 from ..kernels import driven_trace, pendulum_trace, substructured_replay
-from ..params import kernel_vector
+from ..params import ENCODER_RESOLUTION, kernel_vector
 from .effects import nominal_values
 
 #: Channels compared per kind.
@@ -135,6 +135,9 @@ class Replay:
             for c in self.channels
         }
         self.noise = {c: 0.0 if c in self.constant else noise_std(self.meas[c]) for c in self.channels}
+        # A constant quantised angle says where the pendulum rests only to within half an encoder
+        # step (Table III's, as one level shows no step of its own): uniform, so step / sqrt(12).
+        self.level_uncertainty = {"theta": ENCODER_RESOLUTION / math.sqrt(12.0)} if "theta" in self.constant else {}
         self.folds = int(folds)
         # Substructured: the first samples replay commands from before the record (unknown).
         self.start = int(math.ceil(COMMAND_HISTORY / self.dt)) if self.kind == "substructured" else 0
