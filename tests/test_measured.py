@@ -395,6 +395,7 @@ def test_cli_synth_diagnose_report(tmp_path):
         "cause",
         "estimate",
         "uncertainty",
+        "fit_uncertainty",
         "error_before",
         "error_after",
         "gain",

@@ -236,7 +236,7 @@ def write_report(diag: Diagnosis, outdir: Path, source: str) -> list[Path]:
                 "",
                 f"Tests of {label} `{t['model']}` against `{t['against']}`: explained share {_fmt(t['explained_share'])} "
                 f"(needed >= {t['share_needed']:g}); block Wilcoxon p = {_fmt(t['p_value'])} (needed < {t['p_needed']:g}); "
-                f"|change| / uncertainty {zs} (needed >= {t['z_needed']:g}, same sign in every fold: "
+                f"|change| / fit uncertainty {zs} (needed >= {t['z_needed']:g}, same sign in every fold: "
                 f"{all(t['folds_agree'].values())}); passed: {t['passed']}"
                 + (
                     f"; beats the single cause with the actuator delay freed: {t['chain_ok']}"
