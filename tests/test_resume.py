@@ -2,6 +2,7 @@
 
 import json
 import logging
+import math
 import os
 import signal
 import socket
@@ -158,6 +159,33 @@ def _partial_run(config: SweepConfig, out: Path, units: list[tuple[int, int]], t
         store.add(rows, f"none:{point}:{start}", [])
     store.flush()
     store.close()
+
+
+def test_a_finished_unit_is_written_while_the_next_one_runs(tmp_path):
+    """The checkpoint interval bounds how long a finished unit waits in memory, even when no
+    further unit arrives (before, it waited for the next unit, however long that took)."""
+    config = SweepConfig("alpha", (10.0, 12.0), mode="fresh", transient_periods=5, record_periods=2)
+    scan = SweepScan(config, 8)
+    full = run_sweep(config)
+    out = tmp_path / "timer.parquet"
+    store = ResultStore(out, sweep_metadata(config), scan.row_columns, flush_seconds=0.2)
+    store.add(full[full.point == 0].reset_index(drop=True), "none:0:0", [])
+    assert not _parts(out)  # within the interval of the store's start: buffered, a timer set
+    deadline = time.time() + 30
+    while not _parts(out) and time.time() < deadline:
+        time.sleep(0.01)
+    assert len(_parts(out)) == 1  # written by the timer; nothing else was called
+    store.add(full[full.point == 1].reset_index(drop=True), "none:1:0", [])
+    store.close()  # the second unit is dropped with the store, as a kill would
+    resumed = run_sweep(config, out)
+    pd.testing.assert_frame_equal(resumed, full, check_exact=True)
+
+
+@pytest.mark.parametrize("value", [-1.0, math.nan, math.inf, "1"])
+def test_checkpoint_interval_is_checked(tmp_path, value):
+    config = SweepConfig("alpha", (10.0,), transient_periods=5, record_periods=2)
+    with pytest.raises(ConfigError, match="--checkpoint-seconds"):
+        run_sweep(config, tmp_path / "x.parquet", checkpoint_seconds=value)
 
 
 def test_resume_reruns_a_partly_done_chunk_whole(tmp_path):

@@ -773,9 +773,9 @@ def run_basins(
     """Run (or resume) a basin computation; return one row per (point, start).
 
     Starts go in units of ``chunk_starts`` (one parameter point each), run
-    by the scan engine (:func:`pendsweep.scan.run_scan`): finished units are
-    persisted through :class:`~pendsweep.results.ResultStore` at least every
-    ``checkpoint_seconds`` s, so a rerun of the same configuration skips it. On the emulated backend a
+    by the scan engine (:func:`pendsweep.scan.run_scan`): a finished unit is
+    persisted through :class:`~pendsweep.results.ResultStore` at most
+    ``checkpoint_seconds`` s after it finishes, so a rerun of the same configuration skips it. On the emulated backend a
     unit runs the batched kernel on all cores (units one after another
     locally, in parallel on Dask); on other backends a unit's starts run on
     ``n_jobs`` threads. ``max_work`` limits the work estimate, an upper

@@ -618,8 +618,8 @@ def run_hopf(
     Persistence, resuming and progress are those of every scan
     (:func:`pendsweep.scan.run_scan`, keyed by ``mass_point, point,
     method``). Scans whose work estimate (:meth:`HopfScan.work`) exceeds
-    ``max_work`` integration steps are refused (None: no limit); finished
-    rows are written at least every ``checkpoint_seconds`` s. Returns the
+    ``max_work`` integration steps are refused (None: no limit); a finished
+    row is written at most ``checkpoint_seconds`` s after it finishes. Returns the
     rows sorted by mass, omega_hat and method order.
     """
     return run_scan(

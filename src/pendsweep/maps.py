@@ -219,8 +219,8 @@ def run_map(
 
     Cells go in units of ``chunk_cells``, each on the batched kernel with
     all cores, run by the scan engine (:func:`pendsweep.scan.run_scan`):
-    finished units are persisted (at least every ``checkpoint_seconds`` s)
-    and skipped on a rerun. ``max_work``
+    finished units are persisted (at most ``checkpoint_seconds`` s after
+    they finish) and skipped on a rerun. ``max_work``
     limits the work estimate (every cell to the cap); None: no limit.
     """
     from .scan import run_scan

@@ -23,6 +23,7 @@ import os
 import shutil
 import socket
 import tempfile
+import threading
 import time
 from collections.abc import Callable, Iterable
 from pathlib import Path
@@ -282,8 +283,10 @@ class ResultStore:
     overwrite : bool
         Discard any previous file or parts at ``path``.
     flush_points, flush_seconds : int, float
-        Persist the buffer after this many units or seconds, whichever first
-        (each part costs two fsyncs: a fast sweep writes about one a second).
+        Persist the buffer once it holds this many units, and at the latest
+        ``flush_seconds`` after the last write: a timer writes a finished unit
+        even while the next one is still running (each part costs two fsyncs,
+        so a fast sweep writes about one a second).
 
     Raises
     ------
@@ -313,6 +316,11 @@ class ResultStore:
         self._buffer: list[pa.Table] = []
         self._buffer_states: dict[str, list[float]] = {}
         self._last_flush = time.monotonic()
+        # The scan adds units from its own thread; the timer writes from another.
+        self._mutex = threading.Lock()
+        self._timer: threading.Timer | None = None
+        self._timer_error: BaseException | None = None
+        self._closed = False
         check_writable(self.path)
         self.lock = OutputLock(self.path)
         try:
@@ -395,14 +403,46 @@ class ResultStore:
 
     # -- writing --------------------------------------------------------------
     def add(self, rows: pa.Table | pd.DataFrame, key: str, final_state: list[float]) -> None:
-        """Buffer one finished unit of work and persist when the buffer is due."""
-        self._buffer.append(as_table(rows))
-        self._buffer_states[key] = final_state
-        due = time.monotonic() - self._last_flush >= self.flush_seconds
-        if len(self._buffer) >= self.flush_points or due:
-            self.flush()
+        """Buffer one finished unit of work; persist it now or by ``flush_seconds`` after the last write."""
+        table = as_table(rows)
+        with self._mutex:
+            self._raise_timer_error()
+            self._buffer.append(table)
+            self._buffer_states[key] = final_state
+            wait = self.flush_seconds - (time.monotonic() - self._last_flush)
+            if len(self._buffer) >= self.flush_points or wait <= 0:
+                self._write_buffer()
+            elif self._timer is None:
+                self._timer = threading.Timer(wait, self._timed_flush)
+                self._timer.daemon = True
+                self._timer.start()
 
     def flush(self) -> None:
+        """Persist the buffered units now."""
+        with self._mutex:
+            self._raise_timer_error()
+            self._write_buffer()
+
+    def _timed_flush(self) -> None:
+        with self._mutex:
+            self._timer = None
+            if self._closed:
+                return
+            try:
+                self._write_buffer()
+            except BaseException as exc:  # kept for the scan's thread: a timer's traceback would be lost
+                self._timer_error = exc
+
+    def _raise_timer_error(self) -> None:
+        if self._timer_error is not None:
+            exc, self._timer_error = self._timer_error, None
+            raise exc
+
+    def _write_buffer(self) -> None:
+        """Write the buffer as one part (the caller holds the mutex)."""
+        if self._timer is not None:
+            self._timer.cancel()
+            self._timer = None
         if not self._buffer:
             return
         meta = {"config_hash": self.config_hash, "final_states": self._buffer_states}
@@ -428,6 +468,11 @@ class ResultStore:
 
     def close(self) -> None:
         """Release the lock (idempotent). Unflushed units are dropped; parts stay for a later resume."""
+        with self._mutex:
+            self._closed = True
+            if self._timer is not None:
+                self._timer.cancel()
+                self._timer = None
         self.lock.release()
 
     def __enter__(self) -> ResultStore:

@@ -195,8 +195,9 @@ def run_scan(
         False: a pyarrow Table sorted by the scan's row columns (no frame is
         built; the rows stay in the columns the scan made them in).
     checkpoint_seconds : float
-        With ``output``: persist finished units at least this often, in
-        seconds (0: after every unit; each checkpoint costs two fsyncs).
+        With ``output``: a finished unit is persisted at most this many
+        seconds after it finishes (0: at once; each write costs two fsyncs).
+        A run killed later loses none of it.
 
     Raises
     ------
@@ -209,8 +210,10 @@ def run_scan(
 
     check_jobs(n_jobs)
     check_work(scan.work(), max_work)
-    if not checkpoint_seconds >= 0:
-        raise ConfigError(f"checkpoint_seconds must be >= 0 s, got {checkpoint_seconds!r}")
+    if not (isinstance(checkpoint_seconds, (int, float)) and 0 <= checkpoint_seconds < math.inf):
+        raise ConfigError(
+            f"--checkpoint-seconds = {checkpoint_seconds!r}: give a finite number of seconds >= 0 (0: write every unit)"
+        )
     if output is None:
         rows = _run(scan, None, Finished(concat_rows([]), {}), n_jobs, progress, executor)
     else:

@@ -519,9 +519,9 @@ def run_sweep(
         False: return a pyarrow Table (same rows and order) instead of a
         DataFrame, as the command line does.
     checkpoint_seconds : float
-        With ``output``: write finished points to the parts directory at least
-        this often, in seconds (0: after every point or branch; a killed sweep
-        loses at most this much work).
+        With ``output``: a finished unit (a point, or a continue branch's
+        point) is written to the parts directory at most this many seconds
+        after it finishes (0: at once); a killed sweep resumes from there.
 
     Returns
     -------

@@ -8,6 +8,7 @@ import click
 
 from ..executors import EXECUTORS, SCHEDULER_ENV
 from ..scan import DEFAULT_MAX_WORK
+from ._app import FiniteFloat
 
 
 def executor_options() -> list[Callable]:
@@ -50,15 +51,19 @@ def max_work(limit: float, yes: bool) -> float | None:
     return None if yes else limit
 
 
+#: Longest checkpoint interval [s] the command line accepts (an hour of finished work at risk).
+MAX_CHECKPOINT_SECONDS = 3600.0
+
+
 def checkpoint_option() -> Callable:
     """click option ``--checkpoint-seconds S``: how often a resumable scan persists finished units."""
     return click.option(
         "--checkpoint-seconds",
-        type=click.FloatRange(min=0),
+        type=FiniteFloat(0.0, MAX_CHECKPOINT_SECONDS, "s"),
         default=1.0,
         show_default=True,
-        help="Write finished units to <output>.parts at least this often, s (0: after every unit); "
-        "a killed run resumes from there.",
+        help="A finished unit is written to <output>.parts at most this long after it finishes, "
+        f"s, 0 to {MAX_CHECKPOINT_SECONDS:g} (0: at once); a killed run resumes from there.",
     )
 
 

@@ -532,10 +532,22 @@ def _list_builtin() -> None:
 )
 @click.option("-j", "--jobs", type=int, default=-1, show_default=True, help="Parallel workers (-1: all cores).")
 @click.option("--overwrite", is_flag=True, help="Replace earlier results instead of resuming.")
+@checkpoint_option()
 @click.option("--progress/--no-progress", default=None, help="Progress bar on stderr (default: when a terminal).")
 @apply_options(executor_options() + work_options())
 def run_definition(
-    definition, list_builtin, output, do_plot, jobs, overwrite, progress, executor, scheduler, max_work, yes
+    definition,
+    list_builtin,
+    output,
+    do_plot,
+    jobs,
+    overwrite,
+    checkpoint_seconds,
+    progress,
+    executor,
+    scheduler,
+    max_work,
+    yes,
 ):
     """Run a declarative sweep: a built-in NAME (see --list), a TOML file, or a results parquet to regenerate.
 
@@ -572,7 +584,7 @@ def run_definition(
         title = spec.description or None
     execute(config, output, jobs=jobs, overwrite=overwrite, progress=progress, plot_path=plot_path, title=title,
             executor=executor, scheduler=scheduler, default_output=default_output,
-            work_limit=None if yes else max_work)  # fmt: skip
+            work_limit=None if yes else max_work, checkpoint_seconds=checkpoint_seconds)  # fmt: skip
 
 
 @main.command("plot", short_help="Draw a Fig. 11-style bifurcation diagram.")
