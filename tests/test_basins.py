@@ -390,6 +390,19 @@ def test_cli_basins_json_and_bad_input(tmp_path):
         assert "Traceback" not in r.output
 
 
+def test_unsettled_after_100_is_not_claimed_from_shorter_runs(tmp_path):
+    """Runs capped at 50 periods cannot say what is unsettled after 100: NaN, and the summary says so
+    (before: the runs unsettled at 50 were reported as unsettled after 100)."""
+    out, js = tmp_path / "b.parquet", tmp_path / "b.json"
+    args = ["basins", "alpha", "--from", "30", "--to", "31", "--step", "1", "--samples", "8", "--no-progress"]
+    short = CliRunner().invoke(main, [*args, "--max-periods", "50", "-o", str(out), "--json", str(js)])
+    assert short.exit_code == 0, short.output
+    assert "unsettled after 100 periods not known" in short.output
+    assert all(math.isnan(u) for u in json.loads(js.read_text())["unsettled_after_100"])
+    full = CliRunner().invoke(main, [*args, "--max-periods", "100", "-o", str(tmp_path / "c.parquet")])
+    assert full.exit_code == 0 and "not known" not in full.output, full.output
+
+
 def test_cli_map_with_boundaries(tmp_path):
     from pendsweep.maps import MapConfig, hopf_boundaries
 

@@ -805,12 +805,18 @@ PAPER_TRANSIENT = 100
 
 
 def point_summary(df_point: pd.DataFrame, max_periods: int) -> tuple[dict[str, Any], np.ndarray, list[Attractor]]:
-    """:func:`summarize` of one point's stored rows, plus the fraction unsettled after 100 periods."""
+    """:func:`summarize` of one point's stored rows, plus the fraction unsettled after 100 periods.
+
+    That fraction is NaN when the runs stopped earlier (``max_periods`` < 100): a
+    run unsettled at its cap may settle before 100.
+    """
     runs = runs_from_frame(df_point)
     summary, labels, attractors = summarize(runs, max_periods)
     n = runs.status.size
-    s100 = float(survival(runs.settle_periods, np.array([PAPER_TRANSIENT]))[0])
-    i100 = float(survival(runs.escape_periods, np.array([PAPER_TRANSIENT]))[0])
+    s100 = i100 = math.nan
+    if max_periods >= PAPER_TRANSIENT:
+        s100 = float(survival(runs.settle_periods, np.array([PAPER_TRANSIENT]))[0])
+        i100 = float(survival(runs.escape_periods, np.array([PAPER_TRANSIENT]))[0])
     summary["unsettled_after_100"] = s100
     summary["unsettled_after_100_stderr"] = binomial_stderr(s100, n)
     summary["irregular_after_100"] = i100

@@ -306,7 +306,8 @@ def basins_command(parameter, start, stop, step, points, **kw):
             parts = ", ".join(
                 f"{c} {100 * summary['classes'][c][summary['values'].index(v)]:.0f}%" for c in summary["classes"]
             )
-            click.echo(f"  {parameter} = {v:g}: {parts}; unsettled after 100 periods {100 * u:.0f}%")
+            late = f"{100 * u:.0f}%" if u == u else "not known (runs stop at --max-periods)"
+            click.echo(f"  {parameter} = {v:g}: {parts}; unsettled after 100 periods {late}")
     if kw["json_path"] is not None:
         kw["json_path"].parent.mkdir(parents=True, exist_ok=True)
         kw["json_path"].write_text(json.dumps(summary, indent=1, default=_json_default))
