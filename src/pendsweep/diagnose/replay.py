@@ -169,6 +169,11 @@ class Replay:
             self.states0 = np.stack(
                 [y[0][starts], y[1][starts], est["theta"][0][starts], est["theta"][1][starts]], axis=1
             )
+            # A pendulum that rests through the record hangs at its equilibrium: every segment starts
+            # it exactly there, whatever encoder zero is tried, so that the model's angle stays
+            # exactly at rest (started a micro-radian off, it moves, and freeing any damping
+            # parameter then "explains" that motion on a noiseless constant channel).
+            self.rests = "theta" in self.constant
             if self.kind == "substructured":
                 self.command = np.ascontiguousarray(record.channel("y_cmd"))
                 self.command_slope = np.ascontiguousarray(est["y_cmd"][1])
@@ -212,7 +217,7 @@ class Replay:
                 break
             i1 = min(i1, stop)
             state = self.states0[k].copy()
-            state[2] -= theta_offset
+            state[2:] = 0.0 if self.rests else (state[2] - theta_offset, state[3])
             driven_trace(state, p, self.force[i0:i1], self.force_half[i0 : i1 - 1], v["gain"], self.dt, sim[i0:i1])
         return {"y": sim[:, 0], "theta": sim[:, 2] + theta_offset}
 
@@ -229,7 +234,7 @@ class Replay:
             if i0 >= stop or M1 <= 0:
                 break
             state = self.states0[k].copy()
-            state[2] -= theta_offset
+            state[2:] = 0.0 if self.rests else (state[2] - theta_offset, state[3])
             cmd, cmdd = self.command.copy(), self.command_slope.copy()
             substructured_replay(
                 state,
