@@ -79,6 +79,7 @@ def test_pendulum_at_rest_effect_found():
     [
         ("forced", 0.015, 500.0),
         ("forced", 0.02, 2000.0),
+        ("forced", 0.0011, 500.0),  # reads one encoder step: bounded, so certain (z >= sqrt 3, not 4)
         ("substructured", 0.09, 500.0),
         ("substructured", 0.07, 2000.0),
     ],

@@ -40,7 +40,9 @@ nominal model (``b``: base, ``m``: model, ``f``: noise floor):
    (zero differences split, so constant or quantised blocks carry their weight
    instead of breaking the test), ``p < P_VALUE``;
 3. its parameter stands out of its jackknife uncertainty, ``z >= Z_MIN``, with
-   the same sign of the change in every fold.
+   the same sign of the change in every fold (an encoder zero read off a resting
+   pendulum, whose error is bounded by half an encoder step, ``z >= Z_BOUNDED``:
+   outside that half step).
 
 A candidate whose estimate lies more than ``IMPLAUSIBLE_FACTOR`` times from its
 nonzero nominal is not named (it absorbs something else); candidates that the
@@ -86,6 +88,10 @@ SHARE_MIN = 0.5
 SECOND_SHARE_MIN = 0.5
 P_VALUE = 1e-3
 Z_MIN = 4.0
+#: A resting pendulum's encoder zero is known to within half an encoder step, uniformly (one-sigma
+#: step / sqrt(12)): a change beyond that half step, z >= sqrt(3), is certain, where Z_MIN, made
+#: for Gaussian errors, would discard a one-step reading.
+Z_BOUNDED = math.sqrt(3.0)
 #: The second round runs when the best single cause leaves more than this multiple of the floor^2.
 SECOND_ROUND_RATIO = 2.0
 #: The second cause is sought among this many next-best single causes.
@@ -544,6 +550,23 @@ def block_test(before: Fit, after: Fit) -> float:
     return float(stats.wilcoxon(d, zero_method="zsplit", alternative="greater").pvalue)
 
 
+def _quantisation_bounded(problem: Problem, fit: Fit, key: str) -> bool:
+    """Whether ``key``'s uncertainty in ``fit`` is the bounded quantisation of resting angle levels."""
+    if key.split("@")[0] != "theta_offset":
+        return False
+    record = problem.replays[int(key.split("@")[1])] if "@" in key else None
+    resting = [rp for rp in problem.replays if record is None or rp is record]
+    if not all("theta" in rp.level_uncertainty for rp in resting):
+        return False
+    return fit.stderr[key] <= max(rp.level_uncertainty["theta"] for rp in resting)
+
+
+def _z_needed(problem: Problem, fit: Fit, cause: str) -> float:
+    """The z a cause's parameters must reach: Z_BOUNDED where every one is quantisation-bounded."""
+    bounded = all(_quantisation_bounded(problem, fit, k) for k in fit.keys_of(cause))
+    return Z_BOUNDED if bounded else Z_MIN
+
+
 def _z(problem: Problem, fit: Fit, cause: str) -> tuple[float, bool]:
     """Smallest |change from nominal| / uncertainty over the cause's parameters, and whether every
     fold changed the parameter in the same direction as the full fit."""
@@ -606,11 +629,12 @@ def _judge(problem: Problem, base: Fit, model: Fit, share_min: float, causes: tu
     share = reduction / excess if excess > 0 and math.isfinite(reduction) else 0.0
     p = block_test(base, model) if math.isfinite(model.error_cv) else 1.0
     zs = {c: _z(problem, model, c) for c in causes}
+    needed = {c: _z_needed(problem, model, c) for c in causes}
     passed = (
         share >= share_min
         and reduction > FLOOR_SHARE * floor2
         and p < P_VALUE
-        and all(z >= Z_MIN and stable for z, stable in zs.values())
+        and all(z >= needed[c] and stable for c, (z, stable) in zs.items())
     )
     return {
         "model": model.cause,
@@ -622,7 +646,7 @@ def _judge(problem: Problem, base: Fit, model: Fit, share_min: float, causes: tu
         "p_value": p,
         "p_needed": P_VALUE,
         "z": {c: z for c, (z, _) in zs.items()},
-        "z_needed": Z_MIN,
+        "z_needed": needed,
         "folds_agree": {c: s for c, (_, s) in zs.items()},
         "passed": bool(passed),
     }
@@ -641,10 +665,10 @@ def failed_tests(judgement: dict[str, Any]) -> list[str]:
     if not j["p_value"] < j["p_needed"]:
         out.append(f"block test against {against}: p = {j['p_value']:.2g}, below {j['p_needed']:g} needed")
     for c, z in j["z"].items():
-        if not z >= j["z_needed"]:
+        if not z >= j["z_needed"][c]:
             out.append(
                 f"{c}: change from nominal only {z:.2f} of its fit uncertainty (jackknife over the folds), "
-                f"{j['z_needed']:g} needed"
+                f"{j['z_needed'][c]:.3g} needed"
             )
         if not j["folds_agree"][c]:
             out.append(f"{c}: the folds disagree on the direction of the change")

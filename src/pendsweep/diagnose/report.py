@@ -231,12 +231,12 @@ def write_report(diag: Diagnosis, outdir: Path, source: str) -> list[Path]:
     for key, label in (("first_round", "the best single cause"), ("second_round", "the best pair")):
         t = diag.tests.get(key)
         if t:
-            zs = ", ".join(f"{c}: {_fmt(z)}" for c, z in t["z"].items())
+            zs = ", ".join(f"{c}: {_fmt(z)} (needed >= {t['z_needed'][c]:.3g})" for c, z in t["z"].items())
             lines += [
                 "",
                 f"Tests of {label} `{t['model']}` against `{t['against']}`: explained share {_fmt(t['explained_share'])} "
                 f"(needed >= {t['share_needed']:g}); block Wilcoxon p = {_fmt(t['p_value'])} (needed < {t['p_needed']:g}); "
-                f"|change| / fit uncertainty {zs} (needed >= {t['z_needed']:g}, same sign in every fold: "
+                f"|change| / fit uncertainty {zs} (same sign in every fold: "
                 f"{all(t['folds_agree'].values())}); passed: {t['passed']}"
                 + (
                     f"; beats the single cause with the actuator delay freed: {t['chain_ok']}"
