@@ -476,10 +476,7 @@ def fit_model(
             stderr[p.key] = max(stderr[p.key], jk)
         # An encoder zero read off resting (constant) angles is known to the reading's quantisation
         # at best, however well the fit reproduces the level.
-        if p.key.split("@")[0] == "theta_offset":
-            resting = [rp for i, rp in enumerate(rps) if p.record in (None, i)]
-            if all("theta" in rp.level_uncertainty for rp in resting):
-                stderr[p.key] = max(stderr[p.key], max(rp.level_uncertainty["theta"] for rp in resting))
+        stderr[p.key] = max(stderr[p.key], _resting_level_sigma(problem, p.key))
     block_mse, record_cv, sq_all = [], [], []
     for i, rp in enumerate(rps):
         # Compared samples of a diverged prediction are NaN: infinite error there.
@@ -550,15 +547,20 @@ def block_test(before: Fit, after: Fit) -> float:
     return float(stats.wilcoxon(d, zero_method="zsplit", alternative="greater").pvalue)
 
 
+def _resting_level_sigma(problem: Problem, key: str) -> float:
+    """Quantisation sigma of an encoder zero ``key`` read off resting angle levels only (else 0)."""
+    if key.split("@")[0] != "theta_offset":
+        return 0.0
+    records = [problem.replays[int(key.split("@")[1])]] if "@" in key else problem.replays
+    if not all("theta" in rp.level_uncertainty for rp in records):
+        return 0.0
+    return max(rp.level_uncertainty["theta"] for rp in records)
+
+
 def _quantisation_bounded(problem: Problem, fit: Fit, key: str) -> bool:
     """Whether ``key``'s uncertainty in ``fit`` is the bounded quantisation of resting angle levels."""
-    if key.split("@")[0] != "theta_offset":
-        return False
-    record = problem.replays[int(key.split("@")[1])] if "@" in key else None
-    resting = [rp for rp in problem.replays if record is None or rp is record]
-    if not all("theta" in rp.level_uncertainty for rp in resting):
-        return False
-    return fit.stderr[key] <= max(rp.level_uncertainty["theta"] for rp in resting)
+    sigma = _resting_level_sigma(problem, key)
+    return sigma > 0.0 and fit.stderr[key] <= sigma
 
 
 def _z_needed(problem: Problem, fit: Fit, cause: str) -> float:
