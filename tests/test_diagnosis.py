@@ -101,7 +101,7 @@ def test_encoder_zero_of_a_resting_pendulum_is_named(kind, offset, rate):
     # Known only to the reading's quantisation (half a step, uniform), which the stated one-sigma
     # uncertainty carries (before: 1e-9 to 3e-6 rad while the estimate was up to 0.6 mrad off).
     sigma = js["uncertainty"]["theta_offset"]
-    assert sigma >= ENCODER_RESOLUTION / math.sqrt(12)
+    assert sigma == pytest.approx(ENCODER_RESOLUTION / math.sqrt(12))  # exact: no calibration factor on it
     assert abs(js["estimate"]["theta_offset"] - offset) <= 2 * sigma
     # The level is the encoder zero: no other single cause comes close.
     runner_up = next(c for c in js["candidates"] if c["cause"] != "angle_offset" and "+" not in c["cause"])

@@ -429,7 +429,15 @@ def test_cli_synth_diagnose_report(tmp_path):
     assert ModelParams.from_mapping(ext).b2 == ext["b2"]
     for f in ("report.md", "measured_vs_models.png", "residuals.png", "signatures.png"):
         assert (tmp_path / "rep" / f).stat().st_size > 0
-    assert "viscous_damping" in (tmp_path / "rep" / "report.md").read_text()
+    report = (tmp_path / "rep" / "report.md").read_text()
+    assert "viscous_damping" in report
+    # One uncertainty per estimate: the verdict line and the candidate table state the same.
+    from pendsweep.diagnose.report import _fmt
+
+    stated = _fmt(js["uncertainty"]["b2"])
+    assert f"{_fmt(js['estimate']['b2'])} ± {stated} |" in report
+    row = next(line for line in report.splitlines() if line.startswith("| `viscous_damping` |"))
+    assert f"| {stated} |" in row
 
 
 def test_cli_synth_is_seeded(tmp_path):

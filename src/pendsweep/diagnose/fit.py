@@ -278,7 +278,9 @@ def start_value(replay: Replay, eff) -> float:
         if len(crossings) >= 3:
             period = 2.0 * (crossings[-1] - crossings[0]) * replay.dt / (len(crossings) - 1)
             amp = np.max(np.abs(theta))
-            # Large-amplitude period lengthening T = T0 (1 + A^2/16) of the pendulum.
+            # Large-amplitude period lengthening T = T0 (1 + A^2/16) of the pendulum, with A^2
+            # taken as half the record's largest: the swing decays over the record. A start only
+            # (1-1.4 % long at A = 0.5 rad on a slow decay); the fit refines it.
             omega0 = 2.0 * math.pi / period * (1.0 + amp * amp / 32.0)
             return float(np.clip(replay.nominal["g"] / omega0**2, eff.lower, 10.0))
     if eff.param == "theta_offset" and "theta" in replay.constant:
@@ -800,10 +802,12 @@ class Diagnosis:
         """One-sigma uncertainty of ``fit``'s estimates as reported: its own, calibrated by kind.
 
         The fit's own uncertainty (``Fit.uncertainty``) is what the verdict's
-        tests divide by; see :data:`UNCERTAINTY_CALIBRATION`.
+        tests divide by; see :data:`UNCERTAINTY_CALIBRATION`. A resting encoder
+        zero whose uncertainty is the quantisation bound keeps it: the bound is
+        exact, the calibration is for model-form error.
         """
         factor = UNCERTAINTY_CALIBRATION[self.problem.kind]
-        return {k: factor * v for k, v in fit.uncertainty.items()}
+        return {k: v if _quantisation_bounded(self.problem, fit, k) else factor * v for k, v in fit.uncertainty.items()}
 
     def to_json(self) -> dict[str, Any]:
         """cause, estimate, uncertainty, error_before/after, gain, explained_share, unexplained, ..."""

@@ -283,7 +283,8 @@ def write_report(diag: Diagnosis, outdir: Path, source: str) -> list[Path]:
     ]
     for c in diag.candidates:
         est = ", ".join(f"{p} = {_fmt(v)}" for p, v in c.estimate.items())
-        err = ", ".join(_fmt(c.stderr[p]) for p in c.estimate)
+        stated = diag.stated_uncertainty(c)
+        err = ", ".join(_fmt(stated[p]) for p in c.estimate)
         status, reasons = diag.status(c)
         why = f"{status}: {'; '.join(reasons)}" if reasons else status
         lines.append(f"| `{c.cause}` | {est} | {err} | {_fmt(c.error_cv)} | {c.bic:.1f} | {why} |")
