@@ -150,10 +150,13 @@ def test_killed_hopf_scan_resumes_bit_identical(tmp_path):
 
 
 def _partial_run(config: SweepConfig, out: Path, units: list[tuple[int, int]], task_points: int = 8) -> None:
-    """Leave ``out`` as a kill would: parts holding only ``units`` of an uninterrupted run."""
+    """Leave ``out`` as a kill would: parts holding only ``units`` of an uninterrupted run.
+
+    Parts hold three units each (no timed checkpoint in between, however slow the machine).
+    """
     scan = SweepScan(config, task_points)
     full = run_sweep(config, task_points=task_points)
-    store = ResultStore(out, sweep_metadata(config), scan.row_columns, flush_points=3)
+    store = ResultStore(out, sweep_metadata(config), scan.row_columns, flush_points=3, flush_seconds=3600.0)
     for point, start in units:
         rows = full[(full.point == point) & (full.start == start)].reset_index(drop=True)
         store.add(rows, f"none:{point}:{start}", [])
@@ -168,14 +171,15 @@ def test_a_finished_unit_is_written_while_the_next_one_runs(tmp_path):
     scan = SweepScan(config, 8)
     full = run_sweep(config)
     out = tmp_path / "timer.parquet"
-    store = ResultStore(out, sweep_metadata(config), scan.row_columns, flush_seconds=0.2)
-    store.add(full[full.point == 0].reset_index(drop=True), "none:0:0", [])
+    first, second = (full[full.point == k].reset_index(drop=True) for k in (0, 1))
+    store = ResultStore(out, sweep_metadata(config), scan.row_columns, flush_seconds=2.0)
+    store.add(first, "none:0:0", [])
     assert not _parts(out)  # within the interval of the store's start: buffered, a timer set
     deadline = time.time() + 30
     while not _parts(out) and time.time() < deadline:
         time.sleep(0.01)
     assert len(_parts(out)) == 1  # written by the timer; nothing else was called
-    store.add(full[full.point == 1].reset_index(drop=True), "none:1:0", [])
+    store.add(second, "none:1:0", [])
     store.close()  # the second unit is dropped with the store, as a kill would
     resumed = run_sweep(config, out)
     pd.testing.assert_frame_equal(resumed, full, check_exact=True)
