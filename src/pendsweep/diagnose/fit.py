@@ -81,7 +81,7 @@ from threadpoolctl import threadpool_limits
 
 from ..errors import ConfigError
 from .effects import CHAIN_PARAMS, EFFECTS, applicable, effect
-from .replay import NUISANCE, Replay
+from .replay import NUISANCE, REST_LEVEL_SIGMA, Replay
 
 FLOOR_SHARE = 0.25
 SHARE_MIN = 0.5
@@ -554,9 +554,7 @@ def _resting_level_sigma(problem: Problem, key: str) -> float:
     if key.split("@")[0] != "theta_offset":
         return 0.0
     records = [problem.replays[int(key.split("@")[1])]] if "@" in key else problem.replays
-    if not all("theta" in rp.level_uncertainty for rp in records):
-        return 0.0
-    return max(rp.level_uncertainty["theta"] for rp in records)
+    return REST_LEVEL_SIGMA if all(rp.rests for rp in records) else 0.0
 
 
 def _quantisation_bounded(problem: Problem, fit: Fit, key: str) -> bool:

@@ -51,6 +51,10 @@ from ..kernels import driven_trace, pendulum_trace, substructured_replay
 from ..params import ENCODER_RESOLUTION, kernel_vector
 from .effects import nominal_values
 
+#: One-sigma uncertainty [rad] of an encoder zero read off a resting pendulum's constant angle:
+#: uniform within half an encoder step (Table III's; one level shows no step of its own).
+REST_LEVEL_SIGMA = ENCODER_RESOLUTION / math.sqrt(12.0)
+
 #: Channels compared per kind.
 CHANNELS = {"free_decay": ("theta",), "forced": ("y", "theta"), "substructured": ("y", "theta", "y_cmd", "Fs")}
 #: Default short-horizon segment length for forced records [s].
@@ -135,9 +139,9 @@ class Replay:
             for c in self.channels
         }
         self.noise = {c: 0.0 if c in self.constant else noise_std(self.meas[c]) for c in self.channels}
-        # A constant quantised angle says where the pendulum rests only to within half an encoder
-        # step (Table III's, as one level shows no step of its own): uniform, so step / sqrt(12).
-        self.level_uncertainty = {"theta": ENCODER_RESOLUTION / math.sqrt(12.0)} if "theta" in self.constant else {}
+        # The pendulum rests through the record: its replay starts at its equilibrium (simulate)
+        # and its constant angle locates the encoder zero to REST_LEVEL_SIGMA.
+        self.rests = "theta" in self.constant
         self.folds = int(folds)
         # Substructured: the first samples replay commands from before the record (unknown).
         self.start = int(math.ceil(COMMAND_HISTORY / self.dt)) if self.kind == "substructured" else 0
@@ -169,11 +173,6 @@ class Replay:
             self.states0 = np.stack(
                 [y[0][starts], y[1][starts], est["theta"][0][starts], est["theta"][1][starts]], axis=1
             )
-            # A pendulum that rests through the record hangs at its equilibrium: every segment starts
-            # it exactly there, whatever encoder zero is tried, so that the model's angle stays
-            # exactly at rest (started a micro-radian off, it moves, and freeing any damping
-            # parameter then "explains" that motion on a noiseless constant channel).
-            self.rests = "theta" in self.constant
             if self.kind == "substructured":
                 self.command = np.ascontiguousarray(record.channel("y_cmd"))
                 self.command_slope = np.ascontiguousarray(est["y_cmd"][1])
@@ -216,10 +215,22 @@ class Replay:
             if i0 >= stop:
                 break
             i1 = min(i1, stop)
-            state = self.states0[k].copy()
-            state[2:] = 0.0 if self.rests else (state[2] - theta_offset, state[3])
+            state = self._segment_start(k, theta_offset)
             driven_trace(state, p, self.force[i0:i1], self.force_half[i0 : i1 - 1], v["gain"], self.dt, sim[i0:i1])
         return {"y": sim[:, 0], "theta": sim[:, 2] + theta_offset}
+
+    def _segment_start(self, k: int, theta_offset: float) -> np.ndarray:
+        """Initial state of segment ``k`` (y, y', theta, theta') for the trial encoder zero ``theta_offset``.
+
+        A pendulum that rests through the record hangs at its equilibrium: every
+        segment starts it exactly there, whatever zero is tried, so that the
+        model's angle stays exactly at rest (started a micro-radian off, it moves,
+        and freeing any damping parameter then "explains" that motion on a
+        noiseless constant channel).
+        """
+        state = self.states0[k].copy()
+        state[2:] = 0.0 if self.rests else (state[2] - theta_offset, state[3])
+        return state
 
     def _loop(self, v: dict[str, float], p: np.ndarray, theta_offset: float, stop: int) -> dict[str, np.ndarray]:
         sim = np.empty((stop, 4))
@@ -233,8 +244,7 @@ class Replay:
         for k, (i0, i1) in enumerate(self.segments):
             if i0 >= stop or M1 <= 0:
                 break
-            state = self.states0[k].copy()
-            state[2:] = 0.0 if self.rests else (state[2] - theta_offset, state[3])
+            state = self._segment_start(k, theta_offset)
             cmd, cmdd = self.command.copy(), self.command_slope.copy()
             substructured_replay(
                 state,
