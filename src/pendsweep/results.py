@@ -32,6 +32,7 @@ from typing import TYPE_CHECKING, Any
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from .columns import has_duplicate_rows, read_parquet, sort_rows
 from .errors import ResultsError
 
 if TYPE_CHECKING:  # rows are pyarrow Tables here; frames only where they are asked for
@@ -126,11 +127,6 @@ def concat_rows(tables: list[pa.Table]) -> pa.Table:
     """Tables concatenated; types unified (all-null or string columns from pandas frames) (empty: no columns)."""
     tables = [t for t in tables if t.num_columns]
     return pa.concat_tables(tables, promote_options="permissive") if tables else pa.table({})
-
-
-def sort_rows(table: pa.Table, columns: list[str]) -> pa.Table:
-    """``table`` stably sorted by ``columns`` (ascending)."""
-    return table.sort_by([(c, "ascending") for c in columns]) if table.num_rows else table
 
 
 def with_metadata(rows: pa.Table | pd.DataFrame, metadata: dict[str, Any]) -> pa.Table:
@@ -376,11 +372,11 @@ class ResultStore:
         run recomputes them.
         """
         if self.path.exists():
-            return pq.read_table(self.path), read_metadata(self.path).get("final_states", {})
+            return read_parquet(self.path), read_metadata(self.path).get("final_states", {})
         tables, states = [], {}
         for f in sorted(self.parts.glob("part-*.parquet")):
             try:
-                table = pq.read_table(f)
+                table = read_parquet(f)
                 meta = read_metadata(f)
                 part_states = meta["final_states"]
                 if not isinstance(part_states, dict):
@@ -396,7 +392,7 @@ class ResultStore:
 
     def _unique(self, table: pa.Table) -> pa.Table:
         """One copy of each row key: a part repeats a unit only if a crash hit between two renames."""
-        if not table.num_rows or table.group_by(self.row_columns).aggregate([]).num_rows == table.num_rows:
+        if not has_duplicate_rows(table, self.row_columns):
             return table
         df = table.to_pandas().drop_duplicates(subset=self.row_columns, keep="last")
         return pa.Table.from_pandas(df, schema=table.schema, preserve_index=False)

@@ -39,8 +39,8 @@ import numpy as np
 import pyarrow as pa
 
 from .backends import BACKENDS, PointRun, make_backend
-from .basins import BackendMap, EmulatedMap, settle_runs
 from .classify import at_rest, classify_runs
+from .columns import repeated, table
 from .errors import ConfigError
 from .executors import Executor
 from .kernels import RECORD_COLUMNS
@@ -285,7 +285,7 @@ def result_rows(config: SweepConfig, r: PointResult) -> pa.Table:
     n = records.shape[0]
     columns: dict[str, Any] = {
         config.parameter: np.full(n, r.value),
-        "direction": pa.array([r.direction] * n, pa.string()),
+        "direction": repeated(r.direction, n),
         "point": np.full(n, r.point, dtype=np.int64),
         "start": np.full(n, r.start, dtype=np.int64),
         "period": np.arange(n, dtype=np.int64),
@@ -294,12 +294,12 @@ def result_rows(config: SweepConfig, r: PointResult) -> pa.Table:
         columns[name] = records[:, j]
     columns["rotations"] = np.nan_to_num(records[:, RECORD_INDEX["rotations"]]).astype(np.int64)
     columns["kicked"] = np.full(n, r.kicked)
-    columns["status"] = pa.array([r.run.status.value] * n, pa.string())
-    columns["motion"] = pa.array([r.motion] * n, pa.string())
+    columns["status"] = repeated(r.run.status.value, n)
+    columns["motion"] = repeated(r.motion, n)
     if config.transient == "auto":
         columns["settled"] = np.full(n, r.settled)
         columns["transient_periods_used"] = np.full(n, r.transient_used, dtype=np.int64)
-    return pa.table(columns)
+    return table(columns)
 
 
 def run_units(config: SweepConfig, backend, params: list, states: np.ndarray, threads=None, one_by_one=False):
@@ -320,6 +320,8 @@ def run_units(config: SweepConfig, backend, params: list, states: np.ndarray, th
         else:
             runs = backend.run_points(params, states, config.transient_periods, config.record_periods, threads)
         return runs, np.zeros(n, dtype=bool), np.full(n, config.transient_periods)
+    from .basins import BackendMap, EmulatedMap, settle_runs  # only adaptive transients need it
+
     if backend.batched and not one_by_one:
         system = EmulatedMap(
             tuple(params), dt=backend.dt, signum=backend.signum, threads=threads,

@@ -424,8 +424,10 @@ def unit_summary(rows) -> str:
     """
     if not rows.num_rows:
         return "0 points ()"
-    first = rows["period"].to_numpy() == 0
-    statuses = collections.Counter(rows["status"].to_numpy(zero_copy_only=False)[first].tolist())
+    from ..columns import strings, to_numpy
+
+    first = to_numpy(rows["period"]) == 0
+    statuses = collections.Counter(s for s, f in zip(strings(rows["status"]), first) if f)
     counts = ", ".join(f"{n} {s}" for s, n in statuses.most_common())
     return f"{int(first.sum())} points ({counts})"
 

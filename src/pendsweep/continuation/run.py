@@ -170,11 +170,11 @@ def run_continuation(config: ContinuationConfig, progress: bool = False) -> dict
     Raises :class:`~pendsweep.continuation.ContinuationError` when Newton
     does not converge at the start (a runtime failure).
     """
-    from tqdm.auto import tqdm
+    from ..scan import progress_bar
 
     problem = config.problem()
     x0 = np.array(config.start_section) if config.start_section is not None else semi_trivial_section(problem.params)
-    bar = tqdm(unit="pt", disable=not progress, desc=f"continue {config.parameter}")
+    bar = progress_bar(progress, unit="pt", desc=f"continue {config.parameter}")
     try:
         result = Continuation(problem, (config.start, config.stop), config.settings(), progress=bar.update).run(
             x0, config.lam0
