@@ -5,7 +5,8 @@ time in libm ``sin``/``cos``, which LLVM cannot vectorise. Here the state of
 a chunk of points (lanes) lives in structure-of-arrays form and the
 innermost loop runs over lanes, so that LLVM turns one RK4 step of the whole
 chunk into AVX-512 code; ``sin``/``cos`` come from the branch-free
-:func:`~pendsweep.kernels._sincos.sincos_poly`. The forcing at the stage
+:func:`~pendsweep.kernels._sincos.sincos_poly`, once per step, rotated to
+the later stages by :func:`~pendsweep.kernels._sincos.rotate_sincos`. The forcing at the stage
 times is read from the scalar kernel's half-step table of the lane's own
 steps per period, so lanes with different ``fe`` share a chunk and **a
 lane's result never depends on the other lanes of its chunk** (which makes
@@ -30,7 +31,7 @@ from typing import NamedTuple
 import numba as nb
 import numpy as np
 
-from ._emulated import eq11_step, forcing_table
+from ._emulated import eq11_vector_step, forcing_table
 from ._layout import (
     N_PARAMS,
     P_B1,
@@ -136,7 +137,7 @@ def _step_chunk(y, yd, th, thd, peak, yabs, live, const, forcing, uniform, u0, u
             const[P_G, i], const[P_M, i], const[P_C, i], const[P_K, i], const[P_K3, i],
             sgn_per_stage, True, const[_INV_L, i], const[_INV_M, i],
         )  # fmt: skip
-        y1, yd1, th1, thd1 = eq11_step((y0, yd0, th0, thd0), a * s0, a * s1, a * s2, const[_DT, i], q)
+        y1, yd1, th1, thd1 = eq11_vector_step((y0, yd0, th0, thd0), a * s0, a * s1, a * s2, const[_DT, i], q)
         _, pk1, ya1 = fold_extremes(abs(pk0), pk0, ya0, y1, th1)
         on = live[i] != 0.0
         y[i] = y1 if on else y0
@@ -287,7 +288,8 @@ def batched_periods(state, p, alpha, fe, steps, lanes, sgn_per_stage, bounds, ou
     Lane ``i`` is integrated as ``emulated_periods`` would with
     ``state[:, i]``, ``p[:, i]``, ``alpha[i]``, ``fe[i]``, ``steps[i]`` and
     ``lanes.transient[i]``, except that sin/cos come from
-    :func:`sincos_poly` (<= 0.8 * 2**-52 absolute), divisions become reciprocals
+    :func:`sincos_poly` (<= 0.8 * 2**-52 absolute) once per step, rotated to the
+    stages (:func:`rotate_sincos`, a few ulp), divisions become reciprocals
     and products and sums contract to FMA (tests bound the departure from the
     exact kernel at 1e-6 of RK4's own truncation error over 120 periods).
 

@@ -226,7 +226,9 @@ def emulated_kernel_function(precision: str = "float64", sgn_per_stage: bool = F
 
         The point with index ``i`` is integrated exactly as
         ``batched_periods`` integrates it in a chunk of points sharing its
-        steps per period, except that sin/cos come from the device's libm.
+        steps per period, except that sin/cos come from the device's libm
+        at every stage (``batched_periods`` rotates one ``sincos_poly`` per
+        step to its stages).
     """
     if precision not in PRECISIONS:
         raise ValueError(f"precision = {precision!r}; choose one of {', '.join(PRECISIONS)}")

@@ -10,7 +10,9 @@ imported.
 Systems and their tuples (SI units):
 
 * :func:`eq11_rhs`, the emulated system, Eq. (11): ``x = (y, y', theta,
-  theta')``, ``u = (F_e, sgn held)``, ``p = EQ11 parameters`` (see its docstring).
+  theta')``, ``u = (F_e, sgn held)``, ``p = EQ11 parameters`` (see its
+  docstring); :func:`eq11_rhs_trig` is the same with sin and cos of theta
+  given, for steps that carry them (:func:`~._rk4.make_rk4_step`).
 * :func:`model_rhs`, the numerical model of a substructured test, Eq. (3):
   ``x = (y*, y*')``, ``u = F_e - F_fb``, ``p = (M1, C1, K, k3)``.
 * :func:`servo_rig_rhs`, the rig with the servo actuator: platform ``x'' =
@@ -78,11 +80,16 @@ def eq11_rhs(x, u, p):
         and ``inv_m = 1/m`` and the two by the denominator with one
         reciprocal: divisions dominate the cost of the vectorised kernel.
     """
-    y, yd, th, thd = x
+    return eq11_rhs_trig(x, sin_cos(x[2], p[11]), u, p)
+
+
+def eq11_rhs_trig(x, trig, u, p):
+    """:func:`eq11_rhs` given ``trig = (sin theta, cos theta)`` of the state (theta itself is not used)."""
+    y, yd, _, thd = x
     force, held = u
     m, l, b1, b2, b3, g, M, C, K, k3, per_stage, vector, inv_l, inv_m = p
     sgn = signum(thd) if per_stage else held
-    s, c = sin_cos(th, vector)
+    s, c = trig
     fd = pendulum_damping(thd, sgn, b1, b2, b3)
     denom = M + m * c * c
     if vector:
@@ -132,6 +139,7 @@ PHYSICS_FUNCTIONS = (
     "pendulum_damping",
     "pendulum_acc",
     "sin_cos",
+    "eq11_rhs_trig",
     "eq11_rhs",
     "model_rhs",
     "servo_rig_rhs",

@@ -19,6 +19,11 @@ the rounding of the argument itself (ulp(x) / 2 = 4.4e-16 at x = 2 pi) and
 ``|x| <= 2**19 pi/2`` (about 8.2e5 rad); the pendulum angle is rewrapped to
 (-pi, pi] every forcing period, so it stays within a few tens of radians even
 while rotating.
+
+:func:`rotate_sincos` gives the sine and cosine of ``x + d`` from those of
+``x`` for a small increment ``d``: the RK4 step of the batched kernel calls
+:func:`sincos_poly` once per step and rotates it to the stage angles
+``theta + (h/2) k``, which differ from ``theta`` by at most ``h |theta'|``.
 """
 
 import numba as nb
@@ -54,3 +59,32 @@ def sincos_poly(x):
     sin_x = s if q == 0.0 else (c if q == 1.0 else (-s if q == 2.0 else -c))
     cos_x = c if q == 0.0 else (-s if q == 1.0 else (-c if q == 2.0 else s))
     return sin_x, cos_x
+
+
+# Taylor coefficients of sin d and cos d (1/3!, 1/5!, ...; 1/2!, 1/4!, ...).
+_R3, _R5, _R7, _R9 = -1.0 / 6.0, 1.0 / 120.0, -1.0 / 5040.0, 1.0 / 362880.0
+_R2, _R4, _R6, _R8 = -0.5, 1.0 / 24.0, -1.0 / 720.0, 1.0 / 40320.0
+
+#: Largest increment [rad] for which :func:`rotate_sincos` is held to a few
+#: ulp: the truncated series err by at most ``|d|**11 / 11! + |d|**10 / 10!``
+#: (3e-17 at 0.1). An RK4 stage moves theta by at most ``h |theta'|``, which
+#: stays below 0.1 rad at dt = 1 ms for |theta'| < 100 rad/s; the fastest
+#: rotation of the paper's sweeps is 30 rad/s. Beyond it the error grows as
+#: ``|d|**10 / 10!`` (3e-10 at 0.5 rad), still far below the error of an RK4
+#: step that moves the angle that much.
+ROTATE_MAX_STEP = 0.1
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def rotate_sincos(sincos, d):
+    """``(sin(x + d), cos(x + d))`` from ``sincos = (sin x, cos x)``, for ``|d| <= ROTATE_MAX_STEP``.
+
+    Angle addition with sin d and cos d from their Taylor series to the
+    ninth and eighth power (branch-free, vectorisable, about a third of the
+    operations of :func:`sincos_poly`). NaN or inf in ``d`` gives NaN.
+    """
+    z = d * d
+    sin_d = d + (d * z) * (_R3 + z * (_R5 + z * (_R7 + z * _R9)))
+    cos_d = 1.0 + z * (_R2 + z * (_R4 + z * (_R6 + z * _R8)))
+    s, c = sincos
+    return s * cos_d + c * sin_d, c * cos_d - s * sin_d
