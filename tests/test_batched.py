@@ -1,17 +1,16 @@
 """The batched (vectorised) emulated kernel against the scalar one, and its sin/cos."""
 
-import re
-
 import numba as nb
 import numpy as np
 import pytest
 
 from pendsweep.backends import BackendBase, EmulatedBackend, PointRun
 from pendsweep.backends._batch import batched_evidence, chunk_bounds, run_batch, run_lanes
+from pendsweep.bench.throughput import vector_instructions
 from pendsweep.classify import classify_run
 from pendsweep.errors import ConfigError
 from pendsweep.kernels import RECORD_COLUMNS, STATUS_DIVERGED, STATUS_OK
-from pendsweep.kernels._batched import _N_CONST, Lanes, _step_chunk
+from pendsweep.kernels._batched import Lanes
 from pendsweep.kernels._layout import SECTION_COLUMNS
 from pendsweep.kernels._sincos import ROTATE_MAX_STEP, rotate_sincos, sincos_poly
 from pendsweep.params import TABLE_IV
@@ -119,14 +118,8 @@ def test_rotate_sincos_accuracy():
 
 def test_inner_loop_is_vectorised():
     """LLVM turns the per-point loop into packed AVX(-512) double arithmetic."""
-    fn = nb.njit(**{k: v for k, v in _step_chunk.targetoptions.items() if k not in ("cache", "nopython")})(
-        _step_chunk.py_func
-    )  # its own options, uncached (to inspect)
-    n = 16
-    fn(*[np.zeros(n) for _ in range(7)], np.ones((_N_CONST, n)), np.zeros((3, n)), True, 0.0, 0.0, 0.0, False)
-    asm = next(iter(fn.inspect_asm().values()))
-    packed = re.findall(r"\bv(?:fmadd|fnmadd|fmsub|mul|add|sub|div)\d*pd\s+%?[yz]mm", asm)
-    assert len(packed) > 100, f"only {len(packed)} packed ymm/zmm double instructions"
+    counts = vector_instructions()
+    assert counts["zmm_packed_double_ops"] + counts["ymm_packed_double_ops"] > 100, counts
 
 
 def _scalar_runs(params, states, transient, record, signum="step"):

@@ -135,12 +135,12 @@ def jax_rk4_factory():
 
 def vector_instructions() -> dict[str, int]:
     """Packed double instructions LLVM emitted for the batched inner loop, by register width."""
-    from ..kernels._batched import _N_CONST, _step_chunk
+    from ..kernels._batched import _N_CONST, _advance_chunk
 
-    fn = nb.njit(**{k: v for k, v in _step_chunk.targetoptions.items() if k not in ("cache", "nopython")})(
-        _step_chunk.py_func
+    fn = nb.njit(**{k: v for k, v in _advance_chunk.targetoptions.items() if k not in ("cache", "nopython")})(
+        _advance_chunk.py_func
     )  # uncached, to inspect
-    fn(*[np.zeros(8) for _ in range(7)], np.ones((_N_CONST, 8)), np.zeros((3, 8)), True, 0.0, 0.0, 0.0, False)
+    fn(*[np.zeros(16) for _ in range(7)], np.ones((_N_CONST, 16)), np.zeros((3, 16)), np.zeros(3), True, 0, 1, False)
     asm = next(iter(fn.inspect_asm().values()))
     ops = r"\bv(?:fn?m(?:add|sub)\d+|mul|add|sub|div|sqrt)pd\s+%?"
     return {

@@ -104,16 +104,9 @@ def twin_separation(ref, twin, scales):
     return full, math.sqrt(u0 * u0 + u1 * u1 + u2 * u2 + u3 * u3)
 
 
-# error_model="numpy": no ZeroDivisionError branch (every denominator is > 0),
-# which would keep LLVM from vectorising the loop. The loop writes only six
-# arrays: more would exceed LLVM's budget of runtime alias checks. FMA
-# contraction (about a third of the kernel's time, with the short range
-# reduction of sincos_poly) is safe only because every chunk is padded to a
-# whole number of vector groups (LANE_GROUP): LLVM contracts the vector body
-# and its scalar remainder loop differently, and a lane that ran in the
-# remainder would differ in its last bits (on a chaotic orbit, in its whole
-# trajectory) from the same lane in the vector body.
-@nb.njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
+# Inlined into _advance_chunk, whose flags it takes there. The loop writes
+# only six arrays: more would exceed LLVM's budget of runtime alias checks.
+@nb.njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"}, inline="always")
 def _step_chunk(y, yd, th, thd, peak, yabs, live, const, forcing, uniform, u0, u1, u2, sgn_per_stage):
     """Advance every live lane of a chunk by one RK4 step.
 
@@ -148,7 +141,7 @@ def _step_chunk(y, yd, th, thd, peak, yabs, live, const, forcing, uniform, u0, u
         yabs[i] = ya1 if on else ya0
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, inline="always")
 def _gather_forcing(forcing, const, tables, k):
     """Each lane's unit forcing sines at the stage times of step ``k``, from its own table."""
     for i in range(forcing.shape[1]):
@@ -157,6 +150,34 @@ def _gather_forcing(forcing, const, tables, k):
         forcing[0, i] = tables[j]
         forcing[1, i] = tables[j + 1]
         forcing[2, i] = tables[j + 2]
+
+
+# error_model="numpy": no ZeroDivisionError branch (every denominator is > 0),
+# which would keep LLVM from vectorising the lane loop. One call runs every
+# step up to the next period end, so the lane loop's runtime alias checks and
+# the call itself are paid once a period, not once a step (a fifth of the
+# time of a 64-lane chunk). FMA contraction (about a third of the kernel's
+# time, with the short range reduction of sincos_poly) is safe only because
+# every chunk is padded to a whole number of vector groups (LANE_GROUP): LLVM
+# contracts the vector body and its scalar remainder loop differently, and a
+# lane that ran in the remainder would differ in its last bits (on a chaotic
+# orbit, in its whole trajectory) from the same lane in the vector body.
+@nb.njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
+def _advance_chunk(y, yd, th, thd, peak, yabs, live, const, forcing, tables, uniform, k_start, k_stop, sgn_per_stage):
+    """Steps ``k_start`` to ``k_stop - 1`` of every live lane (no lane's period ends before ``k_stop``).
+
+    Arguments as :func:`_step_chunk`; ``tables`` are the chunk's unit forcing
+    tables (a uniform chunk uses the first, of ``const[_STEPS, 0]`` steps).
+    """
+    steps = int(const[_STEPS, 0])
+    for k in range(k_start, k_stop):
+        if uniform:
+            j = 2 * (k % steps)
+            u0, u1, u2 = tables[j], tables[j + 1], tables[j + 2]
+        else:
+            _gather_forcing(forcing, const, tables, k)
+            u0 = u1 = u2 = 0.0
+        _step_chunk(y, yd, th, thd, peak, yabs, live, const, forcing, uniform, u0, u1, u2, sgn_per_stage)
 
 
 @nb.njit(cache=True, nogil=True)
@@ -253,26 +274,18 @@ def _integrate_chunk(state, p, alpha, fe, steps, lanes, lo, sgn_per_stage, out, 
     # inside one of the written arrays, LLVM's runtime overlap check then sends
     # the whole loop to its scalar fallback, which contracts to FMA differently.
     forcing = np.zeros((3, width))
-    next_end = period_end.min() if n > 0 else 0
-    for k in range(max_steps):
-        j = 2 * (k % steps[0]) if uniform else 0
-        if not uniform:
-            _gather_forcing(forcing, const, tables, k)
-        _step_chunk(
-            y, yd, th, thd, peak, yabs, live, const, forcing, uniform, tables[j], tables[j + 1], tables[j + 2],
-            sgn_per_stage,
-        )  # fmt: skip
-        if k + 1 < next_end:
-            continue
-        next_end = max_steps + 1
+    k = 0
+    while k < max_steps:
+        stop = min(period_end.min(), max_steps)
+        _advance_chunk(y, yd, th, thd, peak, yabs, live, const, forcing, tables, uniform, k, stop, sgn_per_stage)
+        k = stop
         for i in range(n):
-            if period_end[i] == k + 1:
+            if period_end[i] == k:
                 period_end[i] += steps[i]
                 if live[i] != 0.0:
                     _close_period(
                         i, y, yd, th, thd, peak, yabs, live, swing, period, lanes, lo, out, status, done, stretch
                     )
-            next_end = min(next_end, period_end[i])
         if live.max() == 0.0:  # lanes stop only at period ends
             break
     state[0, :] = y[:n]
