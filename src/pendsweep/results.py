@@ -317,6 +317,7 @@ class ResultStore:
         self._timer: threading.Timer | None = None
         self._timer_error: BaseException | None = None
         self._closed = False
+        self._part_counter = 0  # index of the next part; 0 while no part is on disk
         check_writable(self.path)
         self.lock = OutputLock(self.path)
         try:
@@ -451,10 +452,22 @@ class ResultStore:
     def finalize(self) -> pa.Table:
         """Merge parts into the final file atomically, remove the parts and release the lock.
 
-        Returns the rows, sorted by the row columns.
+        Returns the rows, sorted by the row columns. A run whose every unit
+        is still in the buffer (no part on disk: it finished within one
+        checkpoint interval of a fresh start) writes the final file straight
+        from memory instead of through a part it would read back.
         """
-        self.flush()
-        table, states = self.done()
+        with self._mutex:
+            in_memory = self._part_counter == 0
+            if in_memory:
+                if self._timer is not None:
+                    self._timer.cancel()
+                    self._timer = None
+                table, states = self._unique(concat_rows(self._buffer)), self._buffer_states
+                self._buffer, self._buffer_states = [], {}
+        if not in_memory:
+            self.flush()
+            table, states = self.done()
         table = sort_rows(table, self.row_columns)
         meta = dict(self.metadata, final_states=states, completed=time.strftime("%Y-%m-%dT%H:%M:%S%z"))
         atomic_write_table(with_metadata(table, meta), self.path)
