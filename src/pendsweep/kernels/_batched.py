@@ -107,22 +107,17 @@ def twin_separation(ref, twin, scales):
 # Inlined into _advance_chunk, whose flags it takes there. The loop writes
 # only six arrays: more would exceed LLVM's budget of runtime alias checks.
 @nb.njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"}, inline="always")
-def _step_chunk(y, yd, th, thd, peak, yabs, live, const, forcing, uniform, u0, u1, u2, sgn_per_stage):
+def _step_chunk(y, yd, th, thd, peak, yabs, live, const, forcing, sgn_per_stage):
     """Advance every live lane of a chunk by one RK4 step.
 
     ``y, yd, th, thd`` are the state, ``peak`` the signed wrapped theta of
     largest modulus and ``yabs`` the max |y| of the current period (all
     float64[n], updated in place); ``live`` is 1.0 for lanes still being
-    integrated; ``const`` is float64[_N_CONST, n]. The unit forcing sines at
-    the stage times are ``u0, u1, u2`` for every lane when the chunk is
-    ``uniform`` in steps per period, else ``forcing[:, i]`` (float64[3, n]):
-    the same table values either way.
+    integrated; ``const`` is float64[_N_CONST, n]; ``forcing[:, i]``
+    (float64[3, n]) holds lane i's unit forcing sines at the stage times.
     """
     for i in range(y.shape[0]):
-        if uniform:
-            s0, s1, s2 = u0, u1, u2
-        else:
-            s0, s1, s2 = forcing[0, i], forcing[1, i], forcing[2, i]
+        s0, s1, s2 = forcing[0, i], forcing[1, i], forcing[2, i]
         a = const[_ALPHA, i]
         y0, yd0, th0, thd0, pk0, ya0 = y[i], yd[i], th[i], thd[i], peak[i], yabs[i]
         q = (
@@ -171,13 +166,14 @@ def _advance_chunk(y, yd, th, thd, peak, yabs, live, const, forcing, tables, uni
     """
     steps = int(const[_STEPS, 0])
     for k in range(k_start, k_stop):
-        if uniform:
+        if uniform:  # one table: a broadcast (the lane loop reads forcing either way, one copy of it)
             j = 2 * (k % steps)
-            u0, u1, u2 = tables[j], tables[j + 1], tables[j + 2]
+            forcing[0, :] = tables[j]
+            forcing[1, :] = tables[j + 1]
+            forcing[2, :] = tables[j + 2]
         else:
             _gather_forcing(forcing, const, tables, k)
-            u0 = u1 = u2 = 0.0
-        _step_chunk(y, yd, th, thd, peak, yabs, live, const, forcing, uniform, u0, u1, u2, sgn_per_stage)
+        _step_chunk(y, yd, th, thd, peak, yabs, live, const, forcing, sgn_per_stage)
 
 
 @nb.njit(cache=True, nogil=True)
@@ -270,10 +266,7 @@ def _integrate_chunk(state, p, alpha, fe, steps, lanes, lo, sgn_per_stage, out, 
         max_steps = max(max_steps, lanes.total[lo + i] * steps[i])
         live[i] = 1.0 if lanes.total[lo + i] > 0 else 0.0
     uniform = n > 0 and steps.min() == steps.max()
-    # Full size even when unused (uniform chunks): a zero-size array can sit
-    # inside one of the written arrays, LLVM's runtime overlap check then sends
-    # the whole loop to its scalar fallback, which contracts to FMA differently.
-    forcing = np.zeros((3, width))
+    forcing = np.zeros((3, width))  # every lane's unit forcing at the current step's stage times
     k = 0
     while k < max_steps:
         stop = min(period_end.min(), max_steps)
