@@ -39,6 +39,11 @@ def test_columns_round_trip_through_parquet_bit_for_bit(tmp_path, n):
         assert np.array_equal(to_numpy(part["i"]), ints[3 : n - 2])
 
 
+def test_foreign_byte_order_is_converted():
+    values = np.arange(6, dtype=">f8") / 3
+    assert np.array_equal(to_numpy(column(values)), values)
+
+
 def test_column_refuses_what_it_cannot_represent():
     with pytest.raises(ValueError, match="one-dimensional"):
         column(np.zeros((2, 2)))

@@ -26,6 +26,8 @@ def column(values: np.ndarray | pa.Array) -> pa.Array:
     a = np.ascontiguousarray(values)
     if a.ndim != 1:
         raise ValueError(f"a column is one-dimensional, got shape {a.shape}")
+    if not a.dtype.isnative:  # Arrow buffers are little-endian native memory
+        a = a.astype(a.dtype.newbyteorder("="))
     if a.dtype == np.bool_:
         bits = np.packbits(a, bitorder="little")
         return pa.Array.from_buffers(pa.bool_(), len(a), [None, pa.py_buffer(bits)])

@@ -40,7 +40,7 @@ import pyarrow as pa
 
 from .backends import BACKENDS, PointRun, make_backend
 from .classify import at_rest, classify_runs
-from .columns import repeated, table
+from .columns import repeated, strings, table, to_numpy
 from .errors import ConfigError
 from .executors import Executor
 from .kernels import RECORD_COLUMNS
@@ -548,14 +548,18 @@ def _resume_info(done_rows: pa.Table, states: dict[str, list[float]], threshold:
     """Per finished unit: its final state, whether it ended OK and at rest."""
     if not done_rows.num_rows:
         return {}
-    done_df = done_rows.to_pandas()
+    rows: dict[str, list[int]] = {}  # unit key -> its rows, in table order
+    columns = zip(strings(done_rows["direction"]), to_numpy(done_rows["point"]), to_numpy(done_rows["start"]))
+    for row, (d, p, s) in enumerate(columns):
+        rows.setdefault(unit_key(d, p, s), []).append(row)
+    ok_rows = np.array([status == "ok" for status in strings(done_rows["status"])])
+    swings = to_numpy(done_rows["theta_absmax"])
     info = {}
-    for (d, p, s), g in done_df.groupby(["direction", "point", "start"], sort=False):
-        key = unit_key(d, p, s)
-        ok = bool((g["status"] == "ok").all())
+    for key, index in rows.items():
+        ok = bool(ok_rows[index].all())
         info[key] = {
             "state": states.get(key),
             "ok": ok and states.get(key) is not None,
-            "at_rest": ok and at_rest(g["theta_absmax"].to_numpy(), threshold),
+            "at_rest": ok and at_rest(swings[index], threshold),
         }
     return info

@@ -81,7 +81,8 @@ def rotate_sincos(sincos, d):
 
     Angle addition with sin d and cos d from their Taylor series to the
     ninth and eighth power (branch-free, vectorisable, about a third of the
-    operations of :func:`sincos_poly`). NaN or inf in ``d`` gives NaN.
+    operations of :func:`sincos_poly`). A NaN ``d`` gives NaN, an infinite one a
+    non-finite pair (the kernel's end-of-period check marks such a lane diverged).
     """
     z = d * d
     sin_d = d + (d * z) * (_R3 + z * (_R5 + z * (_R7 + z * _R9)))
