@@ -80,7 +80,8 @@ def eq11_rhs(x, u, p):
         and ``inv_m = 1/m`` and the two by the denominator with one
         reciprocal: divisions dominate the cost of the vectorised kernel.
     """
-    return eq11_rhs_trig(x, sin_cos(x[2], p[11]), u, p)
+    vector = p[11]  # the ``vector`` flag of the parameter tuple
+    return eq11_rhs_trig(x, sin_cos(x[2], vector), u, p)
 
 
 def eq11_rhs_trig(x, trig, u, p):
