@@ -12,7 +12,6 @@ DataFrame never pays for pandas.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pyarrow as pa
@@ -71,11 +70,6 @@ def to_numpy(values: pa.Array | pa.ChunkedArray) -> np.ndarray:
     if not n:
         return np.empty(0, dtype)
     return np.frombuffer(values.buffers()[1], dtype, count=offset + n)[offset:].copy()
-
-
-def strings(values: pa.Array | pa.ChunkedArray) -> list[Any]:
-    """A column as a Python list (strings, or None for nulls)."""
-    return values.to_pylist()
 
 
 def read_parquet(path: Path) -> pa.Table:

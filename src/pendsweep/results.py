@@ -435,11 +435,15 @@ class ResultStore:
             exc, self._timer_error = self._timer_error, None
             raise exc
 
-    def _write_buffer(self) -> None:
-        """Write the buffer as one part (the caller holds the mutex)."""
+    def _cancel_timer(self) -> None:
+        """Stop a pending timed write (the caller holds the mutex)."""
         if self._timer is not None:
             self._timer.cancel()
             self._timer = None
+
+    def _write_buffer(self) -> None:
+        """Write the buffer as one part (the caller holds the mutex)."""
+        self._cancel_timer()
         if not self._buffer:
             return
         meta = {"config_hash": self.config_hash, "final_states": self._buffer_states}
@@ -460,9 +464,7 @@ class ResultStore:
         with self._mutex:
             in_memory = self._part_counter == 0
             if in_memory:
-                if self._timer is not None:
-                    self._timer.cancel()
-                    self._timer = None
+                self._cancel_timer()
                 table, states = self._unique(concat_rows(self._buffer)), self._buffer_states
                 self._buffer, self._buffer_states = [], {}
         if not in_memory:
@@ -479,9 +481,7 @@ class ResultStore:
         """Release the lock (idempotent). Unflushed units are dropped; parts stay for a later resume."""
         with self._mutex:
             self._closed = True
-            if self._timer is not None:
-                self._timer.cancel()
-                self._timer = None
+            self._cancel_timer()
         self.lock.release()
 
     def __enter__(self) -> ResultStore:

@@ -40,7 +40,7 @@ import pyarrow as pa
 
 from .backends import BACKENDS, PointRun, make_backend
 from .classify import at_rest, classify_runs
-from .columns import repeated, strings, table, to_numpy
+from .columns import repeated, table, to_numpy
 from .errors import ConfigError
 from .executors import Executor
 from .kernels import RECORD_COLUMNS
@@ -549,10 +549,10 @@ def _resume_info(done_rows: pa.Table, states: dict[str, list[float]], threshold:
     if not done_rows.num_rows:
         return {}
     rows: dict[str, list[int]] = {}  # unit key -> its rows, in table order
-    columns = zip(strings(done_rows["direction"]), to_numpy(done_rows["point"]), to_numpy(done_rows["start"]))
+    columns = zip(done_rows["direction"].to_pylist(), to_numpy(done_rows["point"]), to_numpy(done_rows["start"]))
     for row, (d, p, s) in enumerate(columns):
         rows.setdefault(unit_key(d, p, s), []).append(row)
-    ok_rows = np.array([status == "ok" for status in strings(done_rows["status"])])
+    ok_rows = np.array([status == "ok" for status in done_rows["status"].to_pylist()])
     swings = to_numpy(done_rows["theta_absmax"])
     info = {}
     for key, index in rows.items():

@@ -424,10 +424,10 @@ def unit_summary(rows) -> str:
     """
     if not rows.num_rows:
         return "0 points ()"
-    from ..columns import strings, to_numpy
+    from ..columns import to_numpy
 
     first = to_numpy(rows["period"]) == 0
-    statuses = collections.Counter(s for s, f in zip(strings(rows["status"]), first) if f)
+    statuses = collections.Counter(s for s, f in zip(rows["status"].to_pylist(), first) if f)
     counts = ", ".join(f"{n} {s}" for s, n in statuses.most_common())
     return f"{int(first.sum())} points ({counts})"
 
