@@ -270,34 +270,22 @@ class SubstructuredBackend(BackendBase):
             return 0.0
         return filter_delay(self.filter_sos(params), params.fe, self.step(params))
 
-    # -- running ------------------------------------------------------------------
-    def _run(self, params, state, transient, n_rec, trace_rows, stride):
-        self.validate(params)
-        state = np.ascontiguousarray(state, dtype=np.float64).copy()
-        if state.shape != (self.state_length(),):
-            raise ConfigError(
-                f"state of length {state.shape} does not fit these backend options "
-                f"(expected {self.state_length()}); start from initial_state"
-            )
-        n = self.steps_per_period(params)
-        dt = self.step(params)
-        ticks = (transient + n_rec) * n
-        rng = np.random.default_rng([self.seed, int(state[S_TICKS])])
-        noise_f = rng.standard_normal(ticks) * self.force_noise
-        noise_x = rng.standard_normal(ticks) * self.lvdt_noise
+    def loop_settings(self, params: ModelParams, dt: float | None = None) -> LoopSettings:
+        """The kernel's :class:`LoopSettings` for these parameters (controller, transfer system, rig, sensors).
+
+        ``dt`` [s] overrides the controller step (an experimental site runs at its client's step).
+        """
+        dt = self.step(params) if dt is None else dt
         use_pred = self.predictor_order >= 0
         order = max(self.predictor_order, 0)
         w, wd = predictor_weights(order, self.predictor_points, self.horizon(params), dt)
-        sos = self.filter_sos(params)
         wf, _ = predictor_weights(order, self.predictor_points, self.filter_delay(params), dt)
-        records = np.full((n_rec, N_RECORD_COLUMNS), np.nan)
-        trace = np.full((trace_rows, N_TRACE_COLUMNS), np.nan)
-        settings = LoopSettings(
+        return LoopSettings(
             M2=float(params.M2),
             C2=float(params.C2),
             alpha=float(params.alpha),
             fe=float(params.fe),
-            steps_per_period=int(n),
+            steps_per_period=int(self.steps_per_period(params)),
             substeps=int(self.physics_substeps),
             actuator=ACT_SERVO if self.actuator == "servo" else ACT_HERMITE,
             tau=float(self.transport_delay if self.actuator != "ideal" else 0.0),
@@ -308,7 +296,7 @@ class SubstructuredBackend(BackendBase):
             w_pred=w,
             wd_pred=wd,
             use_filter=bool(self.force_filter),
-            sos=sos,
+            sos=self.filter_sos(params),
             use_force_pred=bool(self.force_filter and use_pred),
             w_force=wf,
             enc_res=float(self.encoder_resolution),
@@ -318,6 +306,24 @@ class SubstructuredBackend(BackendBase):
             hf_ratio=HF_RATIO,
             hf_accel=HF_ACCEL_FLOOR,
         )
+
+    # -- running ------------------------------------------------------------------
+    def _run(self, params, state, transient, n_rec, trace_rows, stride):
+        self.validate(params)
+        state = np.ascontiguousarray(state, dtype=np.float64).copy()
+        if state.shape != (self.state_length(),):
+            raise ConfigError(
+                f"state of length {state.shape} does not fit these backend options "
+                f"(expected {self.state_length()}); start from initial_state"
+            )
+        n = self.steps_per_period(params)
+        ticks = (transient + n_rec) * n
+        rng = np.random.default_rng([self.seed, int(state[S_TICKS])])
+        noise_f = rng.standard_normal(ticks) * self.force_noise
+        noise_x = rng.standard_normal(ticks) * self.lvdt_noise
+        records = np.full((n_rec, N_RECORD_COLUMNS), np.nan)
+        trace = np.full((trace_rows, N_TRACE_COLUMNS), np.nan)
+        settings = self.loop_settings(params)
         code, done = substructured_loop(
             state, params.kernel_array(), settings, noise_f, noise_x, transient, records, trace, stride
         )

@@ -13,6 +13,7 @@ from . import (
     _continue,  # noqa: F401,E402  (registers continue)
     _data,  # noqa: F401,E402  (registers diagnose, fit-damping, synth)
     _hopf,  # noqa: F401,E402  (registers the hopf command)
+    _site,  # noqa: F401,E402  (registers site)
     _stability,  # noqa: F401,E402  (registers margin)
     _substructured,  # noqa: F401,E402  (registers trace and sync)
     _sweep,  # noqa: F401,E402  (registers the sweep commands)

@@ -310,37 +310,70 @@ def high_frequency_growth(sum_x2, sum_h2, n, dt, we, cfg):
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
-def controller_tick(s, hist, jstep, k, tick, dt, we, table, model, pend, ms, cfg, noise_f, noise_x, row, tr):
-    """One controller tick, steps a-e of the module docstring, on the state vector ``s``.
+def sense(s, ms, cfg, m, l, dt, noise_f, noise_x, phase):
+    """Step a, the rig's sensors at the current tick, on the state vector ``s``.
 
-    ``hist = (cmd, cmdd, y_hist, f_hist, filter registers)`` are views into
-    the state; ``tr`` is the trace row to fill (length 0: none).
+    The load cell is read through an integrating ADC: the sample is the mean
+    of F_s over the last tick, exact as a momentum difference because
+    F_s = dP/dt (see the module docstring). The momentum slots of ``s`` move
+    on to this tick. ``phase`` is the forcing phase of the odd harmonics.
+
+    Returns
+    -------
+    (f_meas [N], fs_true [N], theta_x [rad], x_meas [m])
     """
-    cmd, cmdd, yh, fh, z = hist
-    m, l = pend[0], pend[1]
-    ys, yds, th, thd, x, xd = s[S_Y], s[S_YDOT], s[S_THETA], s[S_THETADOT], s[S_X], s[S_XDOT]
-    # a. sensors. The load cell is read through an integrating ADC: the sample
-    # is the mean of F_s over the last tick, which is exact as a momentum
-    # difference because F_s = dP/dt (see the module docstring).
+    x, xd, th, thd = s[S_X], s[S_XDOT], s[S_THETA], s[S_THETADOT]
     mom_prev = interface_momentum(s[S_P_XD], s[S_P_X], s[S_P_TH], ms, cfg.C2, m, l)
     s[S_P_XD], s[S_P_X], s[S_P_TH] = xd, x, thd * math.sin(th)
     fs_true = (interface_momentum(s[S_P_XD], s[S_P_X], s[S_P_TH], ms, cfg.C2, m, l) - mom_prev) / dt
-    f_meas = load_cell(fs_true, noise_f[tick], cfg.harmonics, we * (jstep * dt))
-    th_x = quantise(th, cfg.enc_res)
-    x_meas = quantise(x, cfg.lvdt_res) + noise_x[tick]
-    # b. force path
+    f_meas = load_cell(fs_true, noise_f, cfg.harmonics, phase)
+    return f_meas, fs_true, quantise(th, cfg.enc_res), quantise(x, cfg.lvdt_res) + noise_x
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def command_tick(s, hist, jstep, k, dt, table, model, cfg, readings, row, tr):
+    """Steps b-d, the controller's part of a tick, given the sensor ``readings`` of :func:`sense`.
+
+    Feeds the force back, samples the record row and the trace row ``tr``
+    (length 0: none; x, x', theta, theta' are read from ``s``), integrates
+    the numerical model over the tick and pushes the next command into the
+    delay line of ``hist = (cmd, cmdd, y_hist, f_hist, filter registers)``.
+    """
+    cmd, cmdd, yh, fh, z = hist
+    f_meas, fs_true, th_x, x_meas = readings
+    ys, yds = s[S_Y], s[S_YDOT]
     f_fb = force_path(f_meas, cfg, z, fh)
     record_sample(row, ys, th_x)
     if tr.shape[0] > 0:
-        write_trace(tr, k * dt, table[2 * jstep], ys, yds, cmd[0], x, xd, x_meas, th_x, th, thd, f_meas, fs_true, f_fb)
+        write_trace(tr, k * dt, table[2 * jstep], ys, yds, cmd[0], s[S_X], s[S_XDOT], x_meas, th_x, s[S_THETA],
+                    s[S_THETADOT], f_meas, fs_true, f_fb)  # fmt: skip
     # c. numerical model, Eq. (3), force held over the step
     ys, yds = model_rk4(
         (ys, yds), table[2 * jstep] - f_fb, table[2 * jstep + 1] - f_fb, table[2 * jstep + 2] - f_fb, dt, model
     )
-    # d. command for t_k+1; e. rig over [t_k, t_k+1]
+    # d. command for t_k+1
     next_command(ys, yds, cfg, yh, cmd, cmdd)
-    x, xd, th, thd = rig_tick(x, xd, th, thd, cmd, cmdd, cfg, pend, dt)
-    s[S_Y], s[S_YDOT], s[S_THETA], s[S_THETADOT], s[S_X], s[S_XDOT] = ys, yds, th, thd, x, xd
+    s[S_Y], s[S_YDOT] = ys, yds
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def rig_advance(s, cmd, cmdd, cfg, pend, dt):
+    """Step e, the rig over one tick driven by the command delay line ``cmd``, ``cmdd``, on ``s``."""
+    x, xd, th, thd = rig_tick(s[S_X], s[S_XDOT], s[S_THETA], s[S_THETADOT], cmd, cmdd, cfg, pend, dt)
+    s[S_X], s[S_XDOT], s[S_THETA], s[S_THETADOT] = x, xd, th, thd
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def controller_tick(s, hist, jstep, k, tick, dt, we, table, model, pend, ms, cfg, noise_f, noise_x, row, tr):
+    """One controller tick, steps a-e of the module docstring, on the state vector ``s``.
+
+    The rig's part (:func:`sense`, :func:`rig_advance`) and the controller's
+    (:func:`command_tick`) are separate functions because an experimental
+    site (:mod:`pendsweep.site`) runs the rig's part on the far side of a socket.
+    """
+    readings = sense(s, ms, cfg, pend[0], pend[1], dt, noise_f[tick], noise_x[tick], we * (jstep * dt))
+    command_tick(s, hist, jstep, k, dt, table, model, cfg, readings, row, tr)
+    rig_advance(s, hist[0], hist[1], cfg, pend, dt)
 
 
 @nb.njit(cache=True, nogil=True, inline="always")

@@ -1,0 +1,95 @@
+"""``pendsweep site``: serve the paper's physical substructure to OpenSees (or any OpenFresco-protocol client)."""
+
+from __future__ import annotations
+
+import click
+
+from ._app import ANGLE, PATH, RATE, FiniteFloat, main
+from ._checks import check_output, key_values, model_sets
+
+TIMEOUT_S = FiniteFloat(1e-3, 3600.0, "s")
+
+
+@main.command("site")
+@click.option(
+    "--port",
+    type=click.IntRange(0, 65535),
+    default=8090,
+    show_default=True,
+    help="TCP port to listen on; 0 picks a free one (printed on stderr).",
+)
+@click.option(
+    "--host",
+    default="127.0.0.1",
+    show_default=True,
+    help="Address to listen on (loopback unless told otherwise; 0.0.0.0 for every interface).",
+)
+@click.option("--once", is_flag=True, help="Serve one client, exit after its die message (status 0) or a fault (1).")
+@click.option("-o", "--output", type=PATH, default=None, help="Log, one row per committed step (.parquet).")
+@click.option("--theta0", type=ANGLE, default=0.1, show_default=True, help="Initial pendulum angle [rad].")
+@click.option("--thetadot0", type=RATE, default=0.0, show_default=True, help="Initial pendulum rate [rad/s].")
+@click.option(
+    "--set",
+    "sets",
+    multiple=True,
+    metavar="NAME=VALUE",
+    help="Physical parameter of the rig, SI units (m, l, b1, b2, b3, g, M2, C2; fe for the load cell's harmonics).",
+)
+@click.option(
+    "-B",
+    "--backend-option",
+    "rig_opts",
+    multiple=True,
+    metavar="KEY=VALUE",
+    help="Rig option, as for --backend substructured: actuator (default ideal), transport_delay [s], "
+    "servo_bandwidth [Hz], force_noise [N], lvdt_noise [m], encoder_resolution [rad], seed, stroke [m, 0.075]; "
+    "and velocity_limit [m/s, 1.0], force_limit [N, 250], report_mass (true).",
+)
+@click.option("--realtime", is_flag=True, help="Pace each step to the wall clock and count deadline misses.")
+@click.option(
+    "--timeout",
+    type=TIMEOUT_S,
+    default=10.0,
+    show_default=True,
+    help="A client silent for longer [s] is a fault (0.001 to 3600).",
+)
+def site_command(port, host, once, output, theta0, thetadot0, sets, rig_opts, realtime, timeout):
+    """Serve the pendulum on its platform as an OpenFresco experimental site.
+
+    Any client of OpenFresco's TCP protocol drives it: OpenSees's genericClient
+    element, or `--backend substructured -B rig=tcp://HOST:PORT`. One client at
+    a time; each starts the rig from its initial state. Exit status with --once:
+    0 when the client ended with die, 1 on a fault (the reason is on stderr and
+    in the log's metadata); 2 for a bad command line.
+    """
+    import signal
+
+    from ..params import ModelParams
+    from ..site.log import SiteLog
+    from ..site.rig import rig_from_options
+    from ..site.server import SiteServer
+
+    if output is not None:
+        check_output(output, "-o/--output", (".parquet",))
+    params = ModelParams.from_mapping(model_sets(sets))
+    rig, config = rig_from_options(key_values(rig_opts, "-B"), params, theta0, thetadot0)
+    config |= {"host": host, "port": port, "once": once, "realtime": realtime, "timeout_s": timeout}
+    log = SiteLog(output, config)
+    try:
+        server = SiteServer(rig, log, host=host, port=port, once=once, timeout=timeout, realtime=realtime)
+    except OSError as exc:
+        from ..errors import RunFailure
+
+        raise RunFailure(f"cannot listen on {host}:{port}: {exc.strerror or exc}") from None
+
+    def stop(signum, frame):
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGTERM, stop)
+    try:
+        status = server.serve()
+    except KeyboardInterrupt:
+        click.echo("pendsweep site: stopped by a signal; log written", err=True)
+        status = 0
+    if status:
+        raise SystemExit(status)

@@ -1,0 +1,59 @@
+"""The rig's half of a substructured tick, for an experimental site that a controller drives over a socket.
+
+The in-process loop (:mod:`._substructured`) runs controller and rig in one
+kernel; a site (:mod:`pendsweep.site`) receives the controller's command
+instead and runs only the rig's steps, with the same functions: the command
+enters the delay line, :func:`~._substructured.rig_advance` moves the rig over
+one step, :func:`~._substructured.sense` reads its sensors.
+"""
+
+import numba as nb
+
+from ._actuator import push
+from ._layout import P_L, P_M_PEND
+from ._substructured import S_THETA, S_THETADOT, S_TICKS, S_X, S_XDOT, rig_advance, sense, state_offsets
+
+#: Slots of the readings vector written by :func:`rig_trial` and :func:`rig_reading`.
+READING_NAMES = ("Fs", "Fs_true", "theta", "x_meas", "x", "xdot", "theta_true", "thetadot", "xddot_mean")
+N_READINGS = len(READING_NAMES)
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _store(out, readings, s, xddot_mean):
+    f_meas, fs_true, th_x, x_meas = readings
+    out[0], out[1], out[2], out[3] = f_meas, fs_true, th_x, x_meas
+    out[4], out[5], out[6], out[7] = s[S_X], s[S_XDOT], s[S_THETA], s[S_THETADOT]
+    out[8] = xddot_mean
+
+
+@nb.njit(cache=True, nogil=True)
+def rig_reading(s, p, cfg, dt, noise_f, noise_x, phase, out):
+    """The sensors of rig state ``s`` without moving it (a reading before the first trial).
+
+    ``p`` is ``ModelParams.kernel_array()``; ``out`` receives :data:`READING_NAMES`.
+    """
+    m, l = p[P_M_PEND], p[P_L]
+    _store(out, sense(s, m + cfg.M2, cfg, m, l, dt, noise_f, noise_x, phase), s, 0.0)
+
+
+@nb.njit(cache=True, nogil=True)
+def rig_trial(s, command, slope, p, pend, cfg, dt, noise_f, noise_x, phase, out):
+    """Move rig state ``s`` one step of ``dt`` [s] towards ``command`` [m] (with ``slope`` [m/s]).
+
+    The command and its slope enter the delay line, the actuator and
+    pendulum are integrated over the step and the sensors read at its end,
+    exactly as steps d-e and a of the in-process tick. ``pend`` is
+    ``(m, l, b1, b2, b3, g)``; ``out`` receives :data:`READING_NAMES`,
+    ``xddot_mean`` being the platform's mean acceleration over the step [m/s^2].
+    """
+    o_cmd, o_cmdd, o_yh, _o_fh, _o_z, _end = state_offsets(cfg.n_cmd, cfg.w_pred.shape[0], cfg.sos.shape[0])
+    cmd = s[o_cmd:o_cmdd]
+    cmdd = s[o_cmdd:o_yh]
+    push(cmd, command)
+    push(cmdd, slope)
+    xd0 = s[S_XDOT]
+    rig_advance(s, cmd, cmdd, cfg, pend, dt)
+    m, l = pend[0], pend[1]
+    readings = sense(s, m + cfg.M2, cfg, m, l, dt, noise_f, noise_x, phase)
+    s[S_TICKS] += 1.0
+    _store(out, readings, s, (s[S_XDOT] - xd0) / dt)

@@ -1,0 +1,340 @@
+"""``pendsweep site``: serve the virtual rig to one remote-test client at a time.
+
+One session is one client: set-up, then frames until die. The dispatch per
+action (see :mod:`.protocol` for the wire format):
+
+============================  =====================================================
+action                        what the site does
+============================  =====================================================
+3 setTrialResponse            rebuild the trial state from the committed rig
+                              (:meth:`SiteRig.trial`); no reply
+5 commitState                 keep the trial state, log one row; no reply
+6 getDaqResponse              disp (LVDT x, encoder theta), vel (x', theta'),
+                              accel (mean x'' over the step), force (load cell),
+                              time: as many of each as the set-up asked for
+7, 8, 9, 11                   the same quantities one by one
+10 getForce                   the force of :meth:`SiteRig.force`
+12, 13 stiffness              0 (the platform rides on bearings; the pendulum's
+                              coupling is dynamic, not a stiffness)
+14 getDamp                    0 (C2's force is measured, not modelled)
+15 getMass                    ``M2 + m`` with ``report_mass`` (default), else 0
+99 die                        the session ends normally
+============================  =====================================================
+
+Anything else ends the session with a one-line reason (:class:`ProtocolError`):
+the rig is held at its committed state, the log up to the last committed
+step is written, and with ``once`` the site exits with status 1. A second
+client that connects while one is served is told nothing and closed, with a
+line on stderr; the session in progress goes on.
+"""
+
+from __future__ import annotations
+
+import gc
+import math
+import socket
+import sys
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .log import SiteLog
+from .protocol import (
+    ACTIONS,
+    SETUP_BYTES,
+    Action,
+    FrameReader,
+    ProtocolError,
+    Setup,
+    frame_buffer,
+    parse_setup,
+    quickack,
+    send_all,
+    tune,
+)
+from .rig import READING_INDEX, SiteRig
+
+#: Seconds of the remaining wait spent spinning instead of sleeping (sleep overshoots by ~0.1 ms).
+SPIN_SECONDS = 3e-4
+
+DAQ_SOURCES = {  # daq quantity -> reading names, in the order they are sent
+    "disp": ("x_meas", "theta"),
+    "vel": ("xdot", "thetadot"),
+    "accel": ("xddot_mean",),
+    "force": ("Fs",),
+}
+
+
+@dataclass
+class SessionSummary:
+    """How one client's session went."""
+
+    peer: str
+    steps: int = 0
+    wall: float = 0.0
+    simulated: float = 0.0
+    service: list[float] = field(default_factory=list)
+    misses: int = 0
+    reason: str = "die"
+    ok: bool = True
+
+    def quantile_us(self, q: float) -> float:
+        """Quantile ``q`` of the service times [us] of the steps whose force was asked for."""
+        times = np.asarray(self.service)
+        times = times[np.isfinite(times)]
+        return float(np.quantile(times, q) * 1e6) if times.size else math.nan
+
+    def line(self) -> str:
+        speed = self.simulated / self.wall if self.wall > 0 else math.nan
+        text = (
+            f"client {self.peer} left after {self.steps} steps ({self.simulated:.6g} s simulated) in "
+            f"{self.wall:.3f} s wall, {speed:.2f}x real time; service time p50 {self.quantile_us(0.5):.1f} us, "
+            f"p99 {self.quantile_us(0.99):.1f} us; deadline misses {self.misses}"
+        )
+        return text if self.ok else f"{text}; stopped: {self.reason}"
+
+    def to_dict(self) -> dict:
+        return {
+            "peer": self.peer,
+            "steps": self.steps,
+            "wall_s": self.wall,
+            "simulated_s": self.simulated,
+            "service_p50_s": self.quantile_us(0.5) * 1e-6,
+            "service_p99_s": self.quantile_us(0.99) * 1e-6,
+            "deadline_misses": self.misses,
+            "ended": "die" if self.ok else "fault",
+            "reason": self.reason,
+        }
+
+
+def _say(text: str) -> None:
+    print(f"pendsweep site: {text}", file=sys.stderr, flush=True)
+
+
+class _Pacer:
+    """Real-time pacing: a step's force is not sent before its simulated time has passed on the wall clock.
+
+    The clock starts at the first step (wall ``w0`` = simulated time 0 of the
+    trial before it); a force sent more than one step after its time is a
+    deadline miss.
+    """
+
+    def __init__(self) -> None:
+        self.origin: float | None = None
+
+    def wait(self, t: float, dt: float) -> bool:
+        """Hold until simulated time ``t`` [s] on the wall clock; return whether ``t + dt`` has already passed."""
+        now = time.perf_counter()
+        if self.origin is None:
+            self.origin = now - (t - dt)
+        target = self.origin + t
+        late = now > target + dt
+        left = target - now
+        if left > SPIN_SECONDS:
+            time.sleep(left - SPIN_SECONDS)
+        while time.perf_counter() < target:
+            pass
+        return late
+
+
+class _Refuser(threading.Thread):
+    """Accepts and closes every client that connects while a session runs (the rig has one controller)."""
+
+    def __init__(self, listener: socket.socket) -> None:
+        super().__init__(daemon=True)
+        self.listener = listener
+        self.busy = threading.Event()
+        self.pending: list[socket.socket] = []
+        self.lock = threading.Lock()
+
+    def run(self) -> None:
+        while True:
+            try:
+                conn, addr = self.listener.accept()
+            except OSError:
+                return
+            if self.busy.is_set():
+                _say(f"refused a second client {addr[0]}:{addr[1]}: a session is in progress")
+                conn.close()
+            else:
+                with self.lock:
+                    self.pending.append(conn)
+
+    def next_client(self, poll: Callable[[], bool]) -> socket.socket | None:
+        """Wait for a client; None when ``poll()`` says to stop."""
+        while not poll():
+            with self.lock:
+                if self.pending:
+                    self.busy.set()
+                    return self.pending.pop(0)
+            time.sleep(0.01)
+        return None
+
+
+def serve_session(conn: socket.socket, rig: SiteRig, log: SiteLog, timeout: float, realtime: bool) -> SessionSummary:
+    """Serve one connected client until die or a fault (see the module docstring)."""
+    try:
+        host, port = conn.getpeername()[:2]
+        peer = f"{host}:{port}"
+    except OSError:  # the client already left
+        peer = "unknown"
+    summary = SessionSummary(peer)
+    rig.reset()
+    log.start_session(peer)
+    start = time.perf_counter()
+    pacer = _Pacer() if realtime else None
+    gc_was_enabled = gc.isenabled()
+    gc.disable()  # a session allocates no cycles; a collection mid-step would be a latency spike
+    try:
+        tune(conn, timeout)
+        reader = FrameReader(conn, timeout)
+        raw = bytearray(SETUP_BYTES)
+        reader.read(memoryview(raw), "set-up message")
+        setup = parse_setup(bytes(raw))
+        _serve_frames(conn, reader, setup, rig, log, summary, pacer)
+    except ProtocolError as exc:
+        summary.ok = False
+        summary.reason = str(exc)
+    finally:
+        if gc_was_enabled:
+            gc.enable()
+        summary.wall = time.perf_counter() - start
+        summary.simulated = rig.committed_time
+        conn.close()
+    return summary
+
+
+def _serve_frames(conn, reader: FrameReader, setup: Setup, rig: SiteRig, log: SiteLog, summary, pacer) -> None:
+    frame = frame_buffer(setup)
+    view = memoryview(frame).cast("B")
+    reply = frame_buffer(setup)
+    reply_bytes = memoryview(reply).cast("B")
+    slices = setup.ctrl_slices()
+    has_vel, has_acc, has_time = setup.ctrl[1] > 0, setup.ctrl[2] > 0, setup.ctrl[4] > 0
+    d_at, v_at, a_at, t_at = slices["disp"].start, slices["vel"].start, slices["accel"].start, slices["time"].start
+    received = 0.0
+    service = math.nan
+    late = False
+    while True:
+        reader.read(view, "frame")
+        code = frame[0]
+        if not (math.isfinite(code) and code == int(code) and int(code) in ACTIONS):
+            raise ProtocolError(f"unknown action {code!r} in frame {summary.steps + 1}")
+        action = int(code)
+        if action == Action.SET_TRIAL_RESPONSE:
+            received = time.perf_counter()
+            t = float(frame[t_at]) if has_time else None
+            rig.trial(
+                float(frame[d_at]),
+                float(frame[v_at]) if has_vel else 0.0,
+                float(frame[a_at]) if has_acc else 0.0,
+                t,
+            )
+            continue
+        if action == Action.COMMIT_STATE:
+            if rig.commit():
+                summary.steps += 1
+                summary.service.append(service)
+                summary.misses += late
+                log.append(rig, service, received - log.session_start, late)
+            service, late = math.nan, False
+            continue
+        if action == Action.DIE:
+            return
+        if pacer is not None and action in (Action.GET_FORCE, Action.GET_DAQ_RESPONSE) and rig.dt is not None:
+            late = pacer.wait(rig.trial_time, rig.dt) or late
+        _fill_reply(action, reply, rig, setup)
+        send_all(conn, reply_bytes, reader.timeout)
+        if action in (Action.GET_FORCE, Action.GET_DAQ_RESPONSE) and received:
+            service = time.perf_counter() - received
+        quickack(conn)
+
+
+def _fill_reply(action: int, reply: np.ndarray, rig: SiteRig, setup: Setup) -> None:
+    reply[:] = 0.0
+    r = rig.readings
+    if action == Action.GET_FORCE:
+        reply[0] = rig.force()
+    elif action == Action.GET_MASS:
+        reply[0] = rig.mass()
+    elif action == Action.GET_DAQ_RESPONSE:
+        at = 0
+        for name, size in zip(("disp", "vel", "accel", "force", "time"), setup.daq):
+            values = [rig.trial_time] if name == "time" else [r[READING_INDEX[n]] for n in DAQ_SOURCES[name]]
+            reply[at : at + size] = values[:size]
+            at += size
+    elif action in (Action.GET_DISP, Action.GET_VEL, Action.GET_ACCEL):
+        name = {Action.GET_DISP: "disp", Action.GET_VEL: "vel", Action.GET_ACCEL: "accel"}[Action(action)]
+        values = [r[READING_INDEX[n]] for n in DAQ_SOURCES[name]]
+        reply[: len(values)] = values
+    elif action == Action.GET_TIME:
+        reply[0] = rig.trial_time
+    # 12, 13 (stiffness) and 14 (damping): zero, see the module docstring
+
+
+@dataclass
+class SiteServer:
+    """A listening site: ``serve()`` runs sessions until told to stop (or after one with ``once``).
+
+    Attributes
+    ----------
+    rig : SiteRig
+    log : SiteLog
+    host : str
+        Address to listen on (default loopback only).
+    port : int
+        0: the system picks a free port (printed on stderr, and in :attr:`address`).
+    once : bool
+        Serve one client, then return its exit status.
+    timeout : float
+        A client silent for longer [s] is a fault.
+    realtime : bool
+        Pace steps to the wall clock and count deadline misses.
+    """
+
+    rig: SiteRig
+    log: SiteLog
+    host: str = "127.0.0.1"
+    port: int = 0
+    once: bool = False
+    timeout: float = 10.0
+    realtime: bool = False
+    stop: threading.Event = field(default_factory=threading.Event)
+    sessions: list[SessionSummary] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        self.listener = socket.create_server((self.host, self.port), reuse_port=False, backlog=4)
+        self.address = self.listener.getsockname()[:2]
+
+    def serve(self) -> int:
+        """Run sessions; returns the exit status (0: the last session ended with die, 1: with a fault)."""
+        refuser = _Refuser(self.listener)
+        refuser.start()
+        rig = self.rig
+        mass = f"mass {rig.mass():g} kg reported" if rig.report_mass else "no mass reported"
+        _say(
+            f"listening on {self.address[0]}:{self.address[1]} ({rig.backend.actuator} actuator, {mass}, "
+            f"timeout {self.timeout:g} s{', real time' if self.realtime else ''})"
+        )
+        status = 0
+        try:
+            while not self.stop.is_set():
+                conn = refuser.next_client(self.stop.is_set)
+                if conn is None:
+                    break
+                summary = serve_session(conn, rig, self.log, self.timeout, self.realtime)
+                refuser.busy.clear()
+                self.sessions.append(summary)
+                self.log.end_session(summary)
+                self.log.write()
+                _say(summary.line())
+                status = 0 if summary.ok else 1
+                if self.once:
+                    break
+        finally:
+            self.listener.close()
+            self.log.write()
+        return status
