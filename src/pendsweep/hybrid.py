@@ -52,9 +52,23 @@ def write_trace(df: pd.DataFrame, path: Path, metadata: dict[str, Any]) -> None:
     atomic_write_table(with_metadata(df, meta), path)
 
 
-def read_trace(path: Path) -> tuple[pd.DataFrame, dict[str, Any]]:
-    """Read a trace written by :func:`write_trace`."""
+def read_trace(path: Path, session: int | None = None) -> tuple[pd.DataFrame, dict[str, Any]]:
+    """Read a trace written by :func:`write_trace`, or a ``pendsweep site`` log as one.
+
+    A site log's command ``d`` is the target ``y`` (= y*) and its LVDT
+    reading ``x_meas`` the achieved displacement; ``session`` picks one client
+    (default: the last). Its metadata then says backend ``substructured``.
+    """
     df, meta = read_results(path)
+    if meta.get("kind") == "site-log":
+        if df.empty:
+            raise ResultsError(f"site log {str(path)!r} holds no committed step")
+        sessions = sorted(df["session"].unique())
+        chosen = sessions[-1] if session is None else session
+        if chosen not in sessions:
+            raise ResultsError(f"site log {str(path)!r} has sessions {sessions}; session {session} is not among them")
+        df = df[df["session"] == chosen].rename(columns={"d": "y"}).reset_index(drop=True)
+        return df, meta | {"backend": "substructured", "session": int(chosen)}
     if meta.get("kind") != "trace":
         raise ResultsError(
             f"{str(path)!r} is a {meta.get('kind', 'unknown')!r} file, not a trace from `pendsweep trace`"

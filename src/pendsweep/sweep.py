@@ -200,6 +200,12 @@ class SweepConfig:
         backend = make_backend(self.backend, **options)
         for v in (self.values[0], self.values[-1]):
             backend.validate(self.params_at(v))
+        if getattr(backend, "rig", ""):  # the protocol cannot put a remote specimen into a state
+            if self.mode != "fresh" or self.transient != "fixed":
+                raise ConfigError(
+                    f"a remote rig ({backend.rig}) starts every point from the site's initial state: "
+                    f"use --mode fresh with a fixed transient (got --mode {self.mode}, --transient {self.transient})"
+                )
         return backend
 
     def branches(self) -> list[tuple[str, list[int]]]:
@@ -296,6 +302,9 @@ def result_rows(config: SweepConfig, r: PointResult) -> pa.Table:
     columns["kicked"] = np.full(n, r.kicked)
     columns["status"] = repeated(r.run.status.value, n)
     columns["motion"] = repeated(r.motion, n)
+    if r.run.round_trip is not None:  # a remote rig: the protocol's timing [s]
+        for name, value in zip(("round_trip_p50", "round_trip_p99", "round_trip_max"), r.run.round_trip):
+            columns[name] = np.full(n, value)
     if config.transient == "auto":
         columns["settled"] = np.full(n, r.settled)
         columns["transient_periods_used"] = np.full(n, r.transient_used, dtype=np.int64)
@@ -470,6 +479,8 @@ class SweepScan:
 
     def tasks(self, finished: Finished, n_jobs: int) -> tuple[list[Callable], int]:
         config = self.config
+        if getattr(self.backend, "rig", ""):
+            n_jobs = 1  # a site serves one controller at a time
         if config.mode != "continue":
             return _independent_tasks(config, self.backend, finished.keys, n_jobs, self.task_points)
         resume = _resume_info(finished.rows, finished.states, config.rest_threshold)

@@ -55,12 +55,17 @@ if TYPE_CHECKING:  # pandas (0.3 s) is imported by the functions that build fram
 
 @dataclass
 class PointRun:
-    """Outcome of one point: records ``(record_periods, 8)``, final state, status."""
+    """Outcome of one point: records ``(record_periods, 8)``, final state, status.
+
+    ``round_trip`` holds the 50th and 99th percentile and the largest of the
+    protocol's round trips [s] when the point ran against a remote rig (None otherwise).
+    """
 
     records: np.ndarray
     state: np.ndarray
     status: Status
     periods_done: int
+    round_trip: np.ndarray | None = None
 
 
 @runtime_checkable

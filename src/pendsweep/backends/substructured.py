@@ -39,6 +39,7 @@ the thread scheduling and a continued state never replays the same noise.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, ClassVar
@@ -77,6 +78,11 @@ from ._base import BackendBase, PointRun, register
 if TYPE_CHECKING:  # pandas (0.3 s) is imported by the functions that build frames, not by importing this module
     import pandas as pd
 
+#: Options of the virtual rig, refused with a remote one (they are the site's to set).
+REMOTE_RIG_OPTIONS = (
+    "physics_substeps", "force_noise", "harmonic3", "harmonic5", "harmonic7", "encoder_resolution",
+    "lvdt_resolution", "lvdt_noise",
+)  # fmt: skip
 #: Instability test: rms of x'' at the controller rate above this [m/s^2] ...
 HF_ACCEL_FLOOR = 2.0
 #: ... and above this multiple of a pure forcing-frequency motion's, for 2 periods in a row.
@@ -144,6 +150,12 @@ class SubstructuredBackend(BackendBase):
         as unstable (default 0.075, the LVDT's +-75 mm).
     seed : int
         Seed of the noise (default 0).
+    rig : str
+        Empty (default): the virtual rig in this process. ``tcp://HOST:PORT``:
+        a remote experimental site (``pendsweep site``, or a real rig's
+        OpenFresco site) takes the commands and returns its measurements
+        (:mod:`pendsweep.site.client`); the transfer-system options then
+        only set the prediction horizon, and the sensor options are the site's.
     """
 
     name: ClassVar[str] = "substructured"
@@ -169,6 +181,7 @@ class SubstructuredBackend(BackendBase):
     lvdt_noise: float = 2e-5
     stroke: float = 0.075
     seed: int = 0
+    rig: str = ""
 
     def __post_init__(self) -> None:
         def need(ok: bool, text: str) -> None:
@@ -209,6 +222,17 @@ class SubstructuredBackend(BackendBase):
                      "lvdt_resolution", "lvdt_noise"):  # fmt: skip
             need(getattr(self, name) >= 0, f"{name} = {getattr(self, name)!r} must be >= 0")
         need(self.stroke > 0, f"stroke = {self.stroke!r} m must be > 0")
+        if self.rig:
+            from ..site.client import parse_rig_url
+
+            parse_rig_url(self.rig)
+            defaults = {f.name: f.default for f in dataclasses.fields(self)}
+            for name in REMOTE_RIG_OPTIONS:
+                need(
+                    getattr(self, name) == defaults[name],
+                    f"{name} describes the rig, which is remote (rig = {self.rig}): set it at the site "
+                    f"(pendsweep site -B {name}=...)",
+                )
 
     # -- contract -----------------------------------------------------------------
     def validate(self, params: ModelParams) -> None:
@@ -316,6 +340,10 @@ class SubstructuredBackend(BackendBase):
                 f"state of length {state.shape} does not fit these backend options "
                 f"(expected {self.state_length()}); start from initial_state"
             )
+        if self.rig:
+            from ..site.client import run_remote
+
+            return run_remote(self, params, state, transient, n_rec, trace_rows, stride)
         n = self.steps_per_period(params)
         ticks = (transient + n_rec) * n
         rng = np.random.default_rng([self.seed, int(state[S_TICKS])])
@@ -327,11 +355,11 @@ class SubstructuredBackend(BackendBase):
         code, done = substructured_loop(
             state, params.kernel_array(), settings, noise_f, noise_x, transient, records, trace, stride
         )
-        return code, int(done), state, records, trace
+        return code, int(done), state, records, trace, None
 
     def run_point(self, params, state, transient_periods, record_periods) -> PointRun:
-        code, done, state, records, _ = self._run(params, state, transient_periods, record_periods, 0, 1)
-        return PointRun(records, state, Status.from_code(code), done)
+        code, done, state, records, _, timing = self._run(params, state, transient_periods, record_periods, 0, 1)
+        return PointRun(records, state, Status.from_code(code), done, timing)
 
     def trace(self, params, state, periods, stride=1) -> pd.DataFrame:
         """Time series of ``periods`` forcing periods, every ``stride``-th tick.
@@ -346,7 +374,7 @@ class SubstructuredBackend(BackendBase):
         """
         n = self.steps_per_period(params)
         rows = (periods * n + stride - 1) // stride
-        code, done, _, _, trace = self._run(params, state, periods, 0, rows, stride)
+        code, done, _, _, trace, _ = self._run(params, state, periods, 0, rows, stride)
         import pandas as pd
 
         df = pd.DataFrame(trace, columns=list(TRACE_COLUMNS)).dropna(subset=["t"]).reset_index(drop=True)

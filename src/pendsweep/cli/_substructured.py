@@ -136,8 +136,17 @@ def trace_command(
     show_default=True,
     help="Sliding window of the online delay estimate [s].",
 )
-def sync_command(trace, output, reference, window):
+@click.option(
+    "--session",
+    type=click.IntRange(0, 10**6),
+    default=None,
+    help="With a site log: the client session to analyse (default: the last).",
+)
+def sync_command(trace, output, reference, window, session):
     """Synchronisation accuracy of a substructured TRACE (Table I, J1-J3, Fig. 12 panels).
+
+    TRACE is a `pendsweep trace` file or a `pendsweep site` log (target: the
+    command d; achieved: the LVDT reading x_meas).
 
     Prints the metrics, draws subspace, error, error PSD and the online delay
     estimate, and writes the estimate's time series next to the figure.
@@ -150,7 +159,7 @@ def sync_command(trace, output, reference, window):
     path = check_output(output or Path(trace).with_suffix(".png"), "-o/--output", FIGURE_SUFFIXES)
     check_output(path.with_name(path.stem + "_delay.csv"), "-o/--output (its _delay.csv)")
     try:
-        df, meta = read_trace(trace)
+        df, meta = read_trace(trace, session)
     except ValueError as exc:  # metadata that is not JSON
         raise ConfigError(f"TRACE {str(trace)!r}: its pendsweep metadata is not valid JSON ({exc})") from None
     if meta.get("backend") != "substructured":

@@ -10,8 +10,18 @@ one step, :func:`~._substructured.sense` reads its sensors.
 import numba as nb
 
 from ._actuator import push
-from ._layout import P_L, P_M_PEND
-from ._substructured import S_THETA, S_THETADOT, S_TICKS, S_X, S_XDOT, rig_advance, sense, state_offsets
+from ._layout import P_C, P_K, P_K3, P_L, P_M, P_M_PEND
+from ._substructured import (
+    S_THETA,
+    S_THETADOT,
+    S_TICKS,
+    S_X,
+    S_XDOT,
+    command_tick,
+    rig_advance,
+    sense,
+    state_offsets,
+)
 
 #: Slots of the readings vector written by :func:`rig_trial` and :func:`rig_reading`.
 READING_NAMES = ("Fs", "Fs_true", "theta", "x_meas", "x", "xdot", "theta_true", "thetadot", "xddot_mean")
@@ -57,3 +67,23 @@ def rig_trial(s, command, slope, p, pend, cfg, dt, noise_f, noise_x, phase, out)
     readings = sense(s, m + cfg.M2, cfg, m, l, dt, noise_f, noise_x, phase)
     s[S_TICKS] += 1.0
     _store(out, readings, s, (s[S_XDOT] - xd0) / dt)
+
+
+@nb.njit(cache=True, nogil=True)
+def client_tick(s, p, cfg, table, jstep, k, readings, row, tr):
+    """The controller's half of tick ``k`` (steps b-d) for a rig on the far side of a socket.
+
+    ``readings = (f_meas, fs_true, theta_x, x_meas)`` are the site's at the
+    tick's start (``fs_true`` NaN when not measured), with ``s``'s x, x',
+    theta, theta' set from them; ``table`` is
+    :func:`~._emulated.forcing_table` of the forcing. Returns the command for
+    the next tick and its slope ``(c [m], c' [m/s])``.
+    """
+    o_cmd, o_cmdd, o_yh, o_fh, o_z, end = state_offsets(cfg.n_cmd, cfg.w_pred.shape[0], cfg.sos.shape[0])
+    hist = (s[o_cmd:o_cmdd], s[o_cmdd:o_yh], s[o_yh:o_fh], s[o_fh:o_z], s[o_z:end])
+    model = (p[P_M] - cfg.M2, p[P_C] - cfg.C2, p[P_K], p[P_K3])
+    dt = 1.0 / (cfg.fe * cfg.steps_per_period)
+    command_tick(
+        s, hist, jstep, k, dt, table, model, cfg, (readings[0], readings[1], readings[2], readings[3]), row, tr
+    )
+    return hist[0][0], hist[1][0]

@@ -306,6 +306,9 @@ class SiteServer:
     sessions: list[SessionSummary] = field(default_factory=list)
 
     def __post_init__(self) -> None:
+        # Load the rig's compiled kernels now: the first client must not wait for them (1-2 s).
+        self.rig.trial(0.0, 0.0, 0.0, self.rig.backend.dt)
+        self.rig.reset()
         self.listener = socket.create_server((self.host, self.port), reuse_port=False, backlog=4)
         self.address = self.listener.getsockname()[:2]
 
