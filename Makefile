@@ -22,8 +22,8 @@ test: lint  ## lint, then the test suite
 	$(BIN)/python -m pytest -x -q
 
 lint: $(STAMP)  ## ruff lint and format check (configured in pyproject.toml)
-	$(BIN)/ruff check src tests
-	$(BIN)/ruff format --check src tests
+	$(BIN)/ruff check src tests examples
+	$(BIN)/ruff format --check src tests examples
 
 format: $(STAMP)  ## apply ruff's fixes and formatting
 	$(BIN)/ruff check --fix src tests

@@ -26,6 +26,11 @@ import argparse
 import time
 
 
+def steps_per_period(fe: float, dt: float = 1e-3) -> int:
+    """Whole steps per forcing period nearest to ``dt`` (as pendsweep does): 455 at 2.2 Hz, 400 at 2.5 Hz."""
+    return max(1, round(1.0 / (fe * dt)))
+
+
 def build_and_run(port: int, alpha: float, fe: float, periods: int, steps_per_period: int,
                   M: float = 10.9, C: float = 20.0, K: float = 1910.0, M2: float = 0.9, C2: float = 10.0,
                   host: str = "127.0.0.1") -> tuple[int, float]:  # fmt: skip
@@ -65,11 +70,12 @@ def main() -> None:
     parser.add_argument("--alpha", type=float, default=5.0, help="forcing amplitude [N] (Fig. 9 PO: 5)")
     parser.add_argument("--fe", type=float, default=2.2, help="forcing frequency [Hz]")
     parser.add_argument("--periods", type=int, default=120)
-    parser.add_argument("--steps-per-period", type=int, default=455, help="455 at 2.2 Hz: dt = 0.999 ms")
+    parser.add_argument("--steps-per-period", type=int, default=None, help="default: dt nearest 1 ms")
     parser.add_argument("--log", default="site-log.parquet", help="the site's -o file, read after the run")
     parser.add_argument("--compare", action="store_true", help="also run the emulated system (pendsweep)")
     args = parser.parse_args()
-    status, wall = build_and_run(args.port, args.alpha, args.fe, args.periods, args.steps_per_period, host=args.host)
+    n = args.steps_per_period or steps_per_period(args.fe)
+    status, wall = build_and_run(args.port, args.alpha, args.fe, args.periods, n, host=args.host)
     simulated = args.periods / args.fe
     print(
         f"OpenSees analyze status {status}; {simulated:.1f} s simulated in {wall:.2f} s ({simulated / wall:.1f}x real time)"

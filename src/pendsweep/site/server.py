@@ -220,9 +220,9 @@ def _serve_frames(conn, reader: FrameReader, setup: Setup, rig: SiteRig, log: Si
     late = False
     while True:
         reader.read(view, "frame")
-        code = frame[0]
+        code = float(frame[0])
         if not (math.isfinite(code) and code == int(code) and int(code) in ACTIONS):
-            raise ProtocolError(f"unknown action {code!r} in frame {summary.steps + 1}")
+            raise ProtocolError(f"unknown action {code!r} after {summary.steps} committed steps")
         action = int(code)
         if action == Action.SET_TRIAL_RESPONSE:
             received = time.perf_counter()
