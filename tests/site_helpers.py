@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 import re
 import socket
 import struct
@@ -89,18 +88,6 @@ class ThreadSite:
     @property
     def reason(self) -> str:
         return self.server.sessions[-1].reason
-
-
-def site_env() -> dict[str, str]:
-    """The environment of a subprocess, with openseespy's own BLAS on the loader's path."""
-    import importlib.util
-
-    env = dict(os.environ)
-    spec = importlib.util.find_spec("openseespylinux")  # importing it would fail before the path is set
-    if spec is not None and spec.submodule_search_locations:
-        lib = str(Path(spec.submodule_search_locations[0]) / "lib")
-        env["LD_LIBRARY_PATH"] = lib + os.pathsep + env.get("LD_LIBRARY_PATH", "")
-    return env
 
 
 class SiteProcess:

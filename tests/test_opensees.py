@@ -9,9 +9,6 @@ run as a user would, in its own process (openseespy's BLAS needs LD_LIBRARY_PATH
 
 from __future__ import annotations
 
-import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -20,31 +17,18 @@ import pytest
 
 from pendsweep import make_backend
 from pendsweep.params import ENCODER_RESOLUTION, ModelParams
-from site_helpers import SiteProcess, site_env
+from pendsweep.site.opensees import run_example
+from site_helpers import SiteProcess
 
-EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "opensees_pendulum_site.py"
 PERIODS = 120
 RECORDED = 20
-
-
-def run_opensees(port: int, alpha: float, fe: float, periods: int = PERIODS) -> dict:
-    """OpenSees's side of the test in its own process: analyze status and wall time."""
-    code = (
-        "import json, runpy, sys\n"
-        f"ns = runpy.run_path({str(EXAMPLE)!r})\n"
-        f"status, wall = ns['build_and_run']({port}, {alpha}, {fe}, {periods}, ns['steps_per_period']({fe}))\n"
-        "print(json.dumps({'status': status, 'wall': wall}))\n"
-    )
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, env=site_env())
-    assert done.returncode == 0, done.stderr[-2000:]
-    return json.loads(done.stdout.strip().splitlines()[-1])
 
 
 def hybrid_test(tmp_path: Path, alpha: float, fe: float, *site_args: str) -> tuple[dict, np.ndarray, str]:
     """Run OpenSees against a fresh site; (OpenSees result, site max |theta| per recorded period, site stderr)."""
     log = tmp_path / "site.parquet"
     site = SiteProcess("--once", "-o", str(log), "--set", f"fe={fe}", *site_args)
-    result = run_opensees(site.port, alpha, fe)
+    result = run_example(site.port, alpha, fe, PERIODS)
     status, err = site.finish()
     assert status == 0, err
     table = pq.read_table(log)

@@ -21,7 +21,8 @@ Fs            N       load-cell reading (the interface force, Eq. (4), with nois
 Fs_true       N       the same without noise
 force         N       the force returned by getForce (``Fs`` less the reported mass's
                       inertia, see ``report_mass``)
-service_time  s       trial received to force sent (NaN: the client asked no force)
+service_time  s       trial received to force sent, less the real-time hold (NaN: the
+                      client asked no force)
 wall          s       wall time of the trial since the session began
 late                  the force went out more than one step after its time (real time)
 ============  ======  ===============================================================

@@ -57,8 +57,9 @@ from .protocol import (
 )
 from .rig import READING_INDEX, SiteRig
 
-#: Seconds of the remaining wait spent spinning instead of sleeping (sleep overshoots by ~0.1 ms).
-SPIN_SECONDS = 3e-4
+#: Waits shorter than this [s] spin instead of sleeping: a process woken from sleep on a shared
+#: virtual machine is sometimes scheduled a millisecond late, a whole step at 1 kHz.
+SPIN_SECONDS = 5e-3
 
 DAQ_SOURCES = {  # daq quantity -> reading names, in the order they are sent
     "disp": ("x_meas", "theta"),
@@ -125,8 +126,11 @@ class _Pacer:
     def __init__(self) -> None:
         self.origin: float | None = None
 
-    def wait(self, t: float, dt: float) -> bool:
-        """Hold until simulated time ``t`` [s] on the wall clock; return whether ``t + dt`` has already passed."""
+    def wait(self, t: float, dt: float) -> tuple[bool, float]:
+        """Hold until simulated time ``t`` [s] on the wall clock.
+
+        Returns whether ``t + dt`` had already passed (a miss) and the seconds held.
+        """
         now = time.perf_counter()
         if self.origin is None:
             self.origin = now - (t - dt)
@@ -137,7 +141,7 @@ class _Pacer:
             time.sleep(left - SPIN_SECONDS)
         while time.perf_counter() < target:
             pass
-        return late
+        return late, max(left, 0.0)
 
 
 class _Refuser(threading.Thread):
@@ -218,6 +222,7 @@ def _serve_frames(conn, reader: FrameReader, setup: Setup, rig: SiteRig, log: Si
     received = 0.0
     service = math.nan
     late = False
+    held = 0.0
     while True:
         reader.read(view, "frame")
         code = float(frame[0])
@@ -240,16 +245,17 @@ def _serve_frames(conn, reader: FrameReader, setup: Setup, rig: SiteRig, log: Si
                 summary.service.append(service)
                 summary.misses += late
                 log.append(rig, service, received - log.session_start, late)
-            service, late = math.nan, False
+            service, late, held = math.nan, False, 0.0
             continue
         if action == Action.DIE:
             return
         if pacer is not None and action in (Action.GET_FORCE, Action.GET_DAQ_RESPONSE) and rig.dt is not None:
-            late = pacer.wait(rig.trial_time, rig.dt) or late
+            miss, held = pacer.wait(rig.trial_time, rig.dt)
+            late = late or miss
         _fill_reply(action, reply, rig, setup)
         send_all(conn, reply_bytes, reader.timeout)
         if action in (Action.GET_FORCE, Action.GET_DAQ_RESPONSE) and received:
-            service = time.perf_counter() - received
+            service = time.perf_counter() - received - held  # the real-time hold is not service
         quickack(conn)
 
 
