@@ -9,6 +9,7 @@ import subprocess
 import sys
 import threading
 import time
+import weakref
 from pathlib import Path
 
 import numpy as np
@@ -90,12 +91,19 @@ class ThreadSite:
         return self.server.sessions[-1].reason
 
 
+def _kill(proc: subprocess.Popen) -> None:
+    if proc.poll() is None:
+        proc.kill()
+        proc.wait()
+
+
 class SiteProcess:
     """``pendsweep site --port 0 ...`` as a subprocess; ``port`` parsed from its listening line."""
 
     def __init__(self, *args: str, start_timeout: float = 120.0) -> None:
         cmd = [sys.executable, "-m", "pendsweep.cli", "site", "--port", "0", *args]
         self.proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        weakref.finalize(self, _kill, self.proc)  # a failed test never leaves a site listening
         self.lines: list[str] = []
         deadline = time.monotonic() + start_timeout
         while time.monotonic() < deadline:

@@ -46,6 +46,8 @@ LOG_COLUMNS = (
     "session", "step", "t", "d", "v", "a", "x", "x_meas", "xdot", "xddot_mean", "theta", "theta_true",
     "thetadot", "Fs", "Fs_true", "force", "service_time", "wall", "late",
 )  # fmt: skip
+#: Rows per allocation of the in-memory log.
+LOG_CHUNK = 8192
 _READINGS = ("x", "x_meas", "xdot", "xddot_mean", "theta", "theta_true", "thetadot", "Fs", "Fs_true")
 _READING_AT = np.array([READING_INDEX[name] for name in _READINGS])
 
@@ -63,7 +65,7 @@ class SiteLog:
     def __init__(self, path: Path | None, config: dict[str, Any]) -> None:
         self.path = Path(path) if path is not None else None
         self.config = config
-        self._data = np.empty((4096, len(LOG_COLUMNS)))
+        self._chunks: list[np.ndarray] = []
         self.n_rows = 0
         self.sessions: list[dict[str, Any]] = []
         self.session = -1
@@ -78,9 +80,10 @@ class SiteLog:
     def append(self, rig: SiteRig, service: float, wall: float, late: bool) -> None:
         """One row for the step ``rig`` has just committed."""
         self._step += 1
-        if self.n_rows == self._data.shape[0]:  # grow by doubling: no allocation on most steps
-            self._data = np.concatenate([self._data, np.empty_like(self._data)])
-        row = self._data[self.n_rows]
+        at = self.n_rows % LOG_CHUNK
+        if at == 0:  # a new chunk, never a copy of the old ones: no stall in a real-time test
+            self._chunks.append(np.empty((LOG_CHUNK, len(LOG_COLUMNS))))
+        row = self._chunks[-1][at]
         row[0], row[1], row[2] = self.session, self._step, rig.committed_time
         row[3:6] = rig.trial_command
         row[6:15] = rig.committed_readings[_READING_AT]
@@ -91,7 +94,7 @@ class SiteLog:
         self.sessions.append(summary.to_dict())
 
     def columns(self) -> dict[str, np.ndarray]:
-        data = self._data[: self.n_rows]
+        data = np.concatenate(self._chunks)[: self.n_rows] if self._chunks else np.empty((0, len(LOG_COLUMNS)))
         out = {name: np.ascontiguousarray(data[:, i]) for i, name in enumerate(LOG_COLUMNS)}
         out["session"] = out["session"].astype(np.int32)
         out["step"] = out["step"].astype(np.int64)
