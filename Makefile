@@ -26,8 +26,8 @@ lint: $(STAMP)  ## ruff lint and format check (configured in pyproject.toml)
 	$(BIN)/ruff format --check src tests examples
 
 format: $(STAMP)  ## apply ruff's fixes and formatting
-	$(BIN)/ruff check --fix src tests
-	$(BIN)/ruff format src tests
+	$(BIN)/ruff check --fix src tests examples
+	$(BIN)/ruff format src tests examples
 
 figures: $(STAMP)  ## regenerate every figure into results/figures/
 	$(BIN)/pendsweep figures -o results/figures

@@ -93,6 +93,8 @@ def _client_against_site(periods: int) -> dict:
     local.run_point(params, local.initial_state(params, 0, 0, 0.1, 0), periods - 1, 1)
     local_wall = time.perf_counter() - start
     return {
+        "status": run.status.value,
+        "periods_done": run.periods_done,
         "wall_seconds": wall,
         "times_real_time": periods / FE / wall,
         "round_trip_p50_us": float(run.round_trip[0] * 1e6),

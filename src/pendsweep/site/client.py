@@ -8,7 +8,9 @@ asks for the daq vectors this loop needs: disp (LVDT x, encoder theta), vel
 ``pendsweep site`` measures; a real rig's site must be configured to return
 the same (the encoder as the second displacement channel).
 
-The loop is the in-process one with the rig's half replaced by the reply:
+The loop is the in-process one with the rig's half replaced by the reply
+(the instability monitor reads the platform's acceleration from the daq
+response instead of differencing positions):
 :func:`~pendsweep.kernels._substructured.command_tick` is the same function,
 so against a ``pendsweep site`` with the same rig options and noise-free
 sensors the records are the in-process ones to rounding.
@@ -42,8 +44,6 @@ from ..kernels._substructured import (
     S_TICKS,
     S_X,
     S_XDOT,
-    S_XPREV1,
-    S_XPREV2,
     S_Y,
     close_period,
     high_frequency_growth,
@@ -189,11 +189,13 @@ def run_remote(backend, params, state, transient: int, n_rec: int, trace_rows: i
                 k = period * n + jstep
                 tr = trace[k // stride] if trace_rows and k % stride == 0 else no_row
                 command, slope = client_tick(state, p, cfg, table, jstep, k, readings, row, tr)
-                take(rig.step(command, slope, (k + 1) * dt, commit=k > 0))
+                reply = rig.step(command, slope, (k + 1) * dt, commit=k > 0)
+                take(reply)
                 tick += 1
                 x = state[S_X]
-                d2 = x - 2.0 * state[S_XPREV1] + state[S_XPREV2]
-                state[S_XPREV2], state[S_XPREV1] = state[S_XPREV1], x
+                # the high-frequency monitor takes x'' from the daq acceleration: a second difference
+                # of the LVDT would measure its noise (20 um / dt^2 = 20 m/s^2), not the platform
+                d2 = reply[4] * dt * dt
                 sum_x2 += x * x
                 sum_h2 += d2 * d2
                 if not (abs(x) <= cfg.stroke and abs(state[S_Y]) <= cfg.stroke):
