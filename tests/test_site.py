@@ -158,7 +158,7 @@ def test_site_options_are_the_rigs_only():
         rig_from_options({"predictor_order": "1"}, FIG9_PO)
     with pytest.raises(ConfigError, match="report_mass"):
         rig_from_options({"report_mass": "maybe"}, FIG9_PO)
-    with pytest.raises(ConfigError, match="velocity = -1"):
+    with pytest.raises(ConfigError, match="velocity_limit=-1"):
         rig_from_options({"velocity_limit": "-1"}, FIG9_PO)
 
 

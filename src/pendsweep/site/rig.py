@@ -58,10 +58,11 @@ class RigLimits:
     force: float = 250.0
 
     def __post_init__(self) -> None:
-        for name in ("stroke", "velocity", "force"):
+        for name, option, unit in (("stroke", "stroke", "m"), ("velocity", "velocity_limit", "m/s"),
+                                   ("force", "force_limit", "N")):  # fmt: skip
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
-                raise ConfigError(f"rig limit {name} = {value!r} must be a finite number > 0")
+                raise ConfigError(f"-B {option}={value!r} {unit}: the rig's limit must be a finite number > 0")
 
 
 class SiteRig:
