@@ -9,10 +9,12 @@ OpenSees's ``genericClient`` element:
 * :mod:`.client`: the substructured backend's ``-B rig=tcp://HOST:PORT``
   sends its commands to a remote site instead of its virtual rig;
 * :mod:`.log`: the site's log, one row per committed step.
+
+The package itself exports only the protocol: the backends import
+:mod:`.client`, and :mod:`.rig` imports the backends, so importing the rig
+here would close a circle.
 """
 
 from .protocol import Action, ProtocolError, Setup, opensees_setup, parse_setup
-from .rig import RigLimits, SiteRig, rig_from_options
 
-__all__ = ["Action", "ProtocolError", "RigLimits", "Setup", "SiteRig", "opensees_setup", "parse_setup",
-           "rig_from_options"]  # fmt: skip
+__all__ = ["Action", "ProtocolError", "Setup", "opensees_setup", "parse_setup"]
