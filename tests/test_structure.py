@@ -65,3 +65,93 @@ def test_no_kernel_function_is_longer_than_80_lines(path):
             doc_lines = len(doc.splitlines()) + 2 if doc else 0
             length = node.end_lineno - node.lineno + 1 - doc_lines
             assert length <= MAX_KERNEL_LINES, f"{path.name}:{node.name} has {length} code lines"
+
+
+# -- imports: no circle between pendsweep's modules --------------------------------------------------------
+def _module_name(path: Path) -> str:
+    parts = list(path.relative_to(SRC.parent).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _import_graph() -> dict[str, set[str]]:
+    """Module -> the pendsweep modules it imports, at any depth of the file (lazy imports count).
+
+    Importing ``a.b.c`` also runs the packages ``a.b`` and ``a``, so each target
+    brings its parent packages too, except the root and the importer's own
+    ancestors (a package's modules run inside it).
+    """
+    files = {_module_name(p): p for p in SRC.rglob("*.py")}
+    graph: dict[str, set[str]] = {}
+    for name, path in files.items():
+        package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+        targets: set[str] = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Import):
+                bases = [alias.name for alias in node.names]
+                names: list[str] = []
+            elif isinstance(node, ast.ImportFrom):
+                if node.level:
+                    anchor = package.split(".")[: len(package.split(".")) - node.level + 1]
+                    base = ".".join(anchor + ([node.module] if node.module else []))
+                else:
+                    base = node.module or ""
+                bases, names = [base], [alias.name for alias in node.names]
+            else:
+                continue
+            for base in bases:
+                if base.split(".")[0] != "pendsweep":
+                    continue
+                found = [f"{base}.{n}" for n in names if f"{base}.{n}" in files] or [base]
+                for target in found:
+                    parts = target.split(".")
+                    for depth in range(2, len(parts) + 1):  # the target and its packages, not the root
+                        module = ".".join(parts[:depth])
+                        if module in files and not name.startswith(module + ".") and module != name:
+                            targets.add(module)
+        graph[name] = targets
+    return graph
+
+
+def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected components with more than one module (Tarjan)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    found: list[list[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in graph.get(v, ()):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                found.append(sorted(component))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return found
+
+
+def test_the_import_graph_sees_lazy_imports():
+    graph = _import_graph()  # the check below is only evidence if it reads imports inside functions too
+    assert "pendsweep.site.client" in graph["pendsweep.backends.substructured"]
+
+
+def test_no_import_cycle_between_pendsweep_modules():
+    cycles = _cycles(_import_graph())
+    assert not cycles, "import circles: " + "; ".join(" <-> ".join(c) for c in cycles)

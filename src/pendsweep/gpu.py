@@ -132,11 +132,13 @@ def run_batch_cuda(
 
     Returns
     -------
-    pendsweep.backends._batch.BatchRun
-        In the order of the inputs.
+    records : float64[n, record_periods, 8]
+    states : float64[n, 4]
+    status, periods_done : int64[n]
+        In the order of the inputs (the fields of
+        :class:`pendsweep.backends._batch.BatchRun`, which wraps them: this
+        module does not import the backends, which import it).
     """
-    from .backends._batch import BatchRun
-
     require_cuda()
     cuda = import_cuda()
     real = PRECISIONS[precision]
@@ -174,9 +176,7 @@ def run_batch_cuda(
             records[lo:hi] = d_out.copy_to_host()
             status[lo:hi] = d_status.copy_to_host()
             done[lo:hi] = d_done.copy_to_host()
-    out = BatchRun(np.empty_like(records), np.empty((n, 4)), np.empty_like(status), np.empty_like(done))
-    out.records[order] = records
-    out.states[order] = z
-    out.status[order] = status
-    out.periods_done[order] = done
+    out = (np.empty_like(records), np.empty((n, 4)), np.empty_like(status), np.empty_like(done))
+    for target, source in zip(out, (records, z, status, done)):
+        target[order] = source
     return out

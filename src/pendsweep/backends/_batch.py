@@ -139,12 +139,12 @@ def run_batch(
             raise ConfigError(f"{name} = {v!r} must be an integer >= {lo}")
     check_device(device, precision)
     if device == "cuda" and n:
-        return run_batch_cuda(
+        return BatchRun(*run_batch_cuda(
             np.stack([q.kernel_array() for q in params]), np.array([q.alpha for q in params]),
             np.array([q.fe for q in params]), np.array([steps_per_period(q.fe, dt) for q in params], dtype=np.int64),
             np.asarray(states, dtype=np.float64).reshape(n, 4), int(transient_periods), int(record_periods),
             sgn_per_stage=signum == "stage", precision=precision,
-        )  # fmt: skip
+        ))  # fmt: skip
     lanes = Lanes(
         transient=np.full(n, int(transient_periods), dtype=np.int64),
         total=np.full(n, int(transient_periods) + int(record_periods), dtype=np.int64),
