@@ -277,3 +277,66 @@ def test_measured_data_locator(tmp_path, monkeypatch):
     monkeypatch.delenv(DATA_ENV)
     monkeypatch.chdir(records.parent)  # a folder below shared/data/measured: found by walking up
     assert find_free_swing_data() == records
+
+
+# -- one spelling per option across commands (issue 24) -------------------------------------------------
+#: The spellings of options that write a file, one per kind (README, "Using it").
+FILE_WRITING = {
+    "--output": "the file or folder a command writes",
+    "--plot": "an extra figure",
+    "--json": "a JSON summary beside what the command prints or writes",
+    "--report": "a report folder",
+    "--params-out": "a fitted model, as a ModelParams JSON",
+}
+#: Path-valued options that read a file.
+FILE_READING = {"--model", "--start", "--overlay"}
+#: Spellings of a quantity that has one canonical spelling; visible on any command, they are errors.
+SYNONYMS = {
+    "--out": "--output", "--outdir": "--output", "--output-dir": "--output", "--outfile": "--output",
+    "--json-out": "--json", "--figure": "--plot", "--png": "--plot", "--param": "--set", "--params": "--set",
+    "--theta-init": "--theta0", "--thetadot-init": "--thetadot0", "--n-jobs": "--jobs", "--threads": "--jobs",
+    "--rng-seed": "--seed", "--model-file": "--model", "--backend-opt": "--backend-option",
+}  # fmt: skip
+
+
+def _visible_options():
+    import click
+
+    for name, command in sorted(main.commands.items()):
+        for param in command.params:
+            if isinstance(param, click.Option) and not param.hidden:
+                yield name, param
+
+
+def test_every_file_writing_option_has_its_one_spelling():
+    import click
+
+    wrong = []
+    for name, param in _visible_options():
+        is_path = isinstance(param.type, click.Path) or "Path" in type(param.type).__name__
+        long = [o for o in param.opts if o.startswith("--")]
+        if is_path and not set(long) & (set(FILE_WRITING) | FILE_READING):
+            wrong.append(f"{name} {'/'.join(param.opts)}")
+        if "--output" in long and "-o" not in param.opts:
+            wrong.append(f"{name} --output without -o")
+        # an option with a default file is written on every run: it is the command's output
+        if is_path and "(default" in (param.help or "") and "--output" not in long:
+            wrong.append(f"{name} {'/'.join(param.opts)} writes by default but is not -o/--output")
+    assert not wrong, f"file options outside {sorted(FILE_WRITING)}: {wrong}"
+
+
+def test_no_quantity_is_spelled_two_ways():
+    found = [
+        f"{name} {opt} (use {SYNONYMS[opt]})" for name, p in _visible_options() for opt in p.opts if opt in SYNONYMS
+    ]
+    assert not found, found
+
+
+def test_continue_takes_output_and_its_old_json_with_a_warning(tmp_path):
+    args = ["continue", "alpha", "--from", "30", "--to", "30.5", "--max-points", "2"]
+    new = CliRunner().invoke(main, [*args, "-o", str(tmp_path / "a.json")])
+    assert new.exit_code == 0, new.output
+    assert (tmp_path / "a.json").exists()
+    old = CliRunner().invoke(main, [*args, "--json", str(tmp_path / "b.json")])
+    assert old.exit_code == 0, old.output
+    assert (tmp_path / "b.json").exists() and "deprecated" in old.output.lower()

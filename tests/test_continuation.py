@@ -505,7 +505,7 @@ def test_cli_continue_writes_the_issue_schema(tmp_path):
     ],
 )
 def test_cli_continue_bad_input_exits_2(args, needle):
-    r = CliRunner().invoke(main, ["continue", "alpha", *args, "--json", "/tmp/never.json"])
+    r = CliRunner().invoke(main, ["continue", "alpha", *args, "-o", "/tmp/never.json"])
     assert r.exit_code == 2, r.output
     assert needle in r.output and "Traceback" not in r.output
 
@@ -526,7 +526,7 @@ def test_cli_continue_bad_start_file_exits_2(tmp_path, content, needle):
     start.write_bytes(content if isinstance(content, bytes) else content.encode())
     r = CliRunner().invoke(
         main,
-        ["continue", "alpha", "--from", "20", "--to", "40", "--start", str(start), "--json", str(tmp_path / "x.json")],
+        ["continue", "alpha", "--from", "20", "--to", "40", "--start", str(start), "-o", str(tmp_path / "x.json")],
     )
     assert r.exit_code == 2, r.output
     assert needle in r.output and "Traceback" not in r.output and len(r.output.strip().splitlines()) <= 2
@@ -535,7 +535,7 @@ def test_cli_continue_bad_start_file_exits_2(tmp_path, content, needle):
 @pytest.mark.parametrize("option", [["--alpha", "99"], ["--set", "alpha=99"]])
 def test_cli_continue_refuses_a_value_for_the_continued_parameter(tmp_path, option):
     r = CliRunner().invoke(
-        main, ["continue", "alpha", "--from", "20", "--to", "40", *option, "--json", str(tmp_path / "x.json")]
+        main, ["continue", "alpha", "--from", "20", "--to", "40", *option, "-o", str(tmp_path / "x.json")]
     )
     assert r.exit_code == 2 and "continued parameter" in r.output, r.output
     assert not (tmp_path / "x.json").exists()
@@ -623,7 +623,7 @@ def test_cli_continue_runtime_failure_exits_1(tmp_path):
     start.write_text(json.dumps({"value": 30.0, "section": [0.05, 2.0, 2.5, 40.0], "period": 1}))
     r = CliRunner().invoke(
         main,
-        ["continue", "alpha", "--from", "20", "--to", "40", "--start", str(start), "--json", str(tmp_path / "x.json")],
+        ["continue", "alpha", "--from", "20", "--to", "40", "--start", str(start), "-o", str(tmp_path / "x.json")],
     )
     assert r.exit_code == 1, r.output
     assert "Newton did not converge" in r.output

@@ -100,11 +100,20 @@ def _aliases(parameter: str) -> set[str]:
     help="Newton tolerance on the scaled update and residual [-].",
 )
 @click.option(
-    "--json",
+    "-o",
+    "--output",
     "json_path",
     type=click.Path(dir_okay=False, path_type=Path),
     default=None,
     help="Result JSON (default results/continue-PARAMETER.json).",
+)
+@click.option(
+    "--json",
+    "json_path_old",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    hidden=True,
+    deprecated="use -o/--output",
 )
 @click.option(
     "--plot",
@@ -149,6 +158,7 @@ def continue_command(
     max_period,
     newton_tol,
     json_path,
+    json_path_old,
     plot_path,
     overlays,
     observable,
@@ -166,7 +176,10 @@ def continue_command(
     from ..continuation import ContinuationError
     from ..continuation.run import START_SHIFT_WARN, ContinuationConfig, run_continuation, start_from_file, write_json
 
-    json_path = check_output(json_path or Path(f"results/continue-{parameter}.json"), "--json", (".json",))
+    if json_path is not None and json_path_old is not None:
+        raise ConfigError("give the result file once (-o/--output; --json is its old name)")
+    json_path = json_path or json_path_old or Path(f"results/continue-{parameter}.json")
+    json_path = check_output(json_path, "-o/--output", (".json",))
     check_output(plot_path, "--plot", FIGURE_SUFFIXES)
     model: dict[str, float] = {}
     if model_file is not None:
