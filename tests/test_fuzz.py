@@ -389,6 +389,9 @@ OTHER: list[tuple[list[str], str]] = [
     (["hopf", "--what", "1.1", "--backend", "warp"], "'warp'"),
     (["hopf", "--what", "1.1", "--executor", "spark"], "'spark'"),
     # trace
+    (["basins", "--alpha", "40", "--grid", "100000x100000"], "GiB of memory"),
+    (["basins", "--alpha", "40", "--grid", "100x100", "--max-work", "1e6"], "pass --max-work 4e9"),
+    (["map", "alpha", "fe", "--alpha", "0:45:100000", "--fe", "2:3:100000"], "GiB of memory"),
     (["site", "--port", "70000"], "70000 is not in the range"),
     (["site", "--port", "-1"], "-1 is not in the range"),
     (["site", "--timeout", "nan"], "'nan' is not finite"),

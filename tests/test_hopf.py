@@ -176,3 +176,26 @@ def test_hopf_figures_quick(tmp_path):
     res = CliRunner().invoke(main, ["figures", "fig10a", "fig10b", "coexistence", "--quick", "--out", str(tmp_path)])
     assert res.exit_code == 0, res.output
     assert {p.name for p in tmp_path.glob("*.png")} == {"fig10a-quick.png", "fig10b-quick.png", "coexistence-quick.png"}
+
+
+def test_the_vectorised_closed_form_is_the_scalar_one_point_by_point():
+    """Eq. (12) in chunks of ANALYTIC_CHUNK points gives every point's scalar value, keys in order."""
+    from pendsweep.hopf import ANALYTIC_CHUNK, HopfConfig, alpha_hopf_analytic, hopf_analytic_rows
+
+    n = ANALYTIC_CHUNK + 1001  # two chunks, the second short
+    config = HopfConfig(omega_hat=tuple(np.linspace(0.8, 1.2, n)), masses=(10.9, 5.9), methods=("analytic",))
+    units = config.units()
+    assert units == [
+        (0, 0, "analytic"),
+        (0, ANALYTIC_CHUNK, "analytic"),
+        (1, 0, "analytic"),
+        (1, ANALYTIC_CHUNK, "analytic"),
+    ]
+    for j, first, _ in units:
+        rows = hopf_analytic_rows(config, j, first)
+        points = rows["point"].to_numpy()
+        assert points[0] == first and np.all(np.diff(points) == 1)
+        for k in (0, len(rows) // 2, len(rows) - 1):
+            scalar = alpha_hopf_analytic(config.params_at(int(points[k]), j))
+            assert rows["alpha_H"].iloc[k] == pytest.approx(scalar, rel=1e-13)
+            assert rows["fe"].iloc[k] == pytest.approx(config.params_at(int(points[k]), j).fe, rel=1e-15)

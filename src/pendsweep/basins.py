@@ -740,13 +740,17 @@ class BasinScan:
         return len(self._chunks())
 
     def work(self):
-        """Upper bound: every start integrated to the cap (early stop typically does 10-30 % of it)."""
+        """Upper bound: every start integrated to the cap (early stop typically does 10-30 % of it).
+
+        Its results take about :data:`RESULT_ROW_BYTES` per start when gathered.
+        """
         from .backends import steps_per_period
-        from .scan import Work
+        from .scan import RESULT_ROW_BYTES, Work
 
         dt = self.config.make_backend().options().get("dt", 1e-3)
         steps = np.mean([steps_per_period(self.config.params_at(v).fe, dt) for v in self.config.values])
-        return Work(len(self.config.values) * self.config.starts, self.config.max_periods, float(steps))
+        starts = len(self.config.values) * self.config.starts
+        return Work(starts, self.config.max_periods, float(steps), result_bytes=starts * RESULT_ROW_BYTES)
 
     def tasks(self, finished, n_jobs: int):
         workers = (os.cpu_count() or 1) if n_jobs < 1 else n_jobs

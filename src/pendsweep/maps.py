@@ -184,9 +184,9 @@ class MapScan:
         return len(self._chunks())
 
     def work(self):
-        """Upper bound: every cell integrated to the cap."""
+        """Upper bound: every cell integrated to the cap; results of about ``RESULT_ROW_BYTES`` per cell."""
         from .backends import steps_per_period
-        from .scan import Work
+        from .scan import RESULT_ROW_BYTES, Work
 
         fe = [
             self.config.params_at(x, y).fe
@@ -194,7 +194,9 @@ class MapScan:
             for y in (self.config.y_values[0], self.config.y_values[-1])
         ]
         steps = float(np.mean([steps_per_period(f, self.config.dt) for f in fe]))
-        return Work(self.config.cells, self.config.max_periods, steps)
+        return Work(
+            self.config.cells, self.config.max_periods, steps, result_bytes=self.config.cells * RESULT_ROW_BYTES
+        )
 
     def tasks(self, finished, n_jobs: int):
         todo = [c for c in self._chunks() if f"cells:{int(c[0])}" not in finished.keys]

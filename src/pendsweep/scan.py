@@ -26,6 +26,7 @@ list by index and rerun a partly finished task whole (see
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -64,9 +65,15 @@ class Finished:
 
 Task = Callable[[], Iterable[UnitResult]]
 
+#: Memory per result row of a per-start scan (basins, map) when gathered [bytes]: about 25 columns
+#: of 8 bytes in Arrow, and as much again while the final table and its summary are built.
+RESULT_ROW_BYTES = 512
 #: Largest work estimate [integration steps] run without ``--max-work`` or ``--yes``
 #: (about 3 core-minutes of the batched emulated kernel, hours of the substructured loop).
 DEFAULT_MAX_WORK = 1e10
+#: The same for basin and parameter maps, whose estimate counts every start to its cap (early stop does
+#: 10-30 % of it): about a day of the batched kernel on a 2-core machine at the measured ~10 ns per step.
+PER_START_MAX_WORK = 1e13
 
 
 @dataclass(frozen=True)
@@ -83,12 +90,15 @@ class Work:
         Integration steps per forcing period (mean over the points).
     other : float
         Steps of work that is not a forcing-period integration (e.g. Floquet monodromies).
+    result_bytes : float
+        Memory the results take when gathered [bytes] (0: not estimated).
     """
 
     units: int
     periods: float
     steps: float
     other: float = 0.0
+    result_bytes: float = 0.0
 
     @property
     def total(self) -> float:
@@ -99,9 +109,28 @@ class Work:
         return text + (f" + {self.other:.3g} other)" if self.other else ")")
 
 
+def machine_memory() -> float:
+    """Physical memory of this machine [bytes] (inf where the system does not say)."""
+    try:
+        return float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+    except (ValueError, OSError, AttributeError):
+        return math.inf
+
+
 def check_work(work: Work, max_work: float | None) -> None:
-    """Refuse (``ConfigError``, exit 2) a scan whose estimate exceeds ``max_work`` (None: no limit)."""
-    if max_work is not None and work.total > max_work:
+    """Refuse (``ConfigError``, exit 2) a scan whose estimate exceeds ``max_work`` or the machine's memory.
+
+    None lifts both limits (``--yes``).
+    """
+    if max_work is None:
+        return
+    memory = machine_memory()
+    if work.result_bytes > memory:
+        raise ConfigError(
+            f"this scan's results need about {work.result_bytes / 2**30:.3g} GiB of memory ({work.units} runs), "
+            f"more than this machine's {memory / 2**30:.3g} GiB; make it smaller (or pass --yes to try anyway)"
+        )
+    if work.total > max_work:
         raise ConfigError(
             f"this scan needs about {work.describe()}, more than the limit of {max_work:.3g}; "
             f"pass --max-work {_round_up(work.total)} (or --yes) to run it"

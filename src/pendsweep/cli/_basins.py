@@ -13,9 +13,10 @@ import click
 
 from ..errors import ConfigError, ParameterError
 from ..params import PARAM_SPECS
+from ..scan import PER_START_MAX_WORK
 from ._app import FINITE, LazyChoice, main
 from ._checks import FIGURE_SUFFIXES, check_output, key_values
-from ._executor import apply_options, checkpoint_option, executor_options
+from ._executor import apply_options, checkpoint_option, executor_options, max_work, work_options
 from ._sweep import DEVICE_OPTION, load_model_file
 
 _MODEL_FLAGS = (("alpha", "alpha", "N"), ("fe", "fe", "Hz"), ("M", "M_", "kg"), ("C", "C_", "kg/s"), ("K", "K_", "N/m"))
@@ -175,7 +176,7 @@ def _progress(flag: bool | None) -> bool:
     show_default=True,
     help="Threads for one-start-at-a-time backends (-1: all cores).",
 )
-@apply_options(executor_options())
+@apply_options(executor_options() + work_options(PER_START_MAX_WORK))
 @click.option(
     "-o",
     "--output",
@@ -276,6 +277,7 @@ def basins_command(parameter, start, stop, step, points, **kw):
             overwrite=kw["overwrite"],
             executor=runner,
             checkpoint_seconds=kw["checkpoint_seconds"],
+            max_work=max_work(kw["max_work"], kw["yes"]),
         )
     finally:
         runner.close()
@@ -362,7 +364,7 @@ def _rewrite_with_attractors(output: Path, rows) -> None:
 )
 @click.option("--dt", type=FINITE, default=1e-3, show_default=True, help="Requested RK4 step [s].")
 @DEVICE_OPTION
-@apply_options(executor_options())
+@apply_options(executor_options() + work_options(PER_START_MAX_WORK))
 @click.option(
     "-o",
     "--output",
@@ -428,6 +430,7 @@ def map_command(x, y, **kw):
             overwrite=kw["overwrite"],
             executor=runner,
             checkpoint_seconds=kw["checkpoint_seconds"],
+            max_work=max_work(kw["max_work"], kw["yes"]),
         )
     finally:
         runner.close()

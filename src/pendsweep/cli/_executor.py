@@ -31,18 +31,24 @@ def executor_options() -> list[Callable]:
     ]
 
 
-def work_options() -> list[Callable]:
+def work_options(default: float = DEFAULT_MAX_WORK) -> list[Callable]:
     """click options ``--max-work STEPS`` and ``--yes``: the limit on a scan's work estimate."""
     return [
         click.option(
             "--max-work",
             type=click.FloatRange(min=0, min_open=True),
-            default=DEFAULT_MAX_WORK,
+            default=default,
             show_default=True,
             metavar="STEPS",
             help="Refuse scans estimated above this many integration steps (points x periods x steps per period).",
         ),
-        click.option("--yes", "-y", "yes", is_flag=True, help="Run whatever the work estimate (lifts --max-work)."),
+        click.option(
+            "--yes",
+            "-y",
+            "yes",
+            is_flag=True,
+            help="Run whatever the estimates (lifts --max-work and the memory check).",
+        ),
     ]
 
 

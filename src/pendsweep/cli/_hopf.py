@@ -39,6 +39,10 @@ def parse_values(text: str, what: str) -> tuple[float, ...]:
     return tuple(float(v) for v in value_range(*bounds, points=n))
 
 
+#: Rows printed at most; a longer scan prints rows evenly spaced through it (the file holds all).
+MAX_ROWS_SHOWN = 60
+
+
 def _all_methods() -> str:
     from ..hopf import METHODS
 
@@ -209,5 +213,10 @@ def hopf(
     finally:
         runner.close()
     shown = ["omega_hat", "fe", "M", "method", "alpha_H", "status", "multiplier", "growth_above", "kick", "runs"]
-    click.echo(df[shown].to_string(index=False, float_format=lambda v: f"{v:.5g}"))
+    table = df[shown]
+    if len(df) > MAX_ROWS_SHOWN:
+        table = table.iloc[[round(k * (len(df) - 1) / (MAX_ROWS_SHOWN - 1)) for k in range(MAX_ROWS_SHOWN)]]
+    click.echo(table.to_string(index=False, float_format=lambda v: f"{v:.5g}"))
+    if len(df) > MAX_ROWS_SHOWN:
+        click.echo(f"({MAX_ROWS_SHOWN} of {len(df)} rows shown, evenly spaced; all in {output})")
     click.echo(f"wrote {output}", err=True)
