@@ -84,7 +84,8 @@ def plot_basin(rows: pd.DataFrame, summary: dict[str, Any], config: BasinConfig,
         ax.scatter(rows.theta0, rows.thetadot0, c=[colours[i] for i in index], s=4, linewidths=0)
     handles = [Patch(color=colours[i], label=n) for i, n in enumerate(names)]
     handles.append(Patch(color="tab:red", label=f"unsettled ({100 * summary['unsettled']:.1f}%)"))
-    ax.legend(handles=handles, fontsize=7, loc="upper right", framealpha=0.8)
+    # below the map, never over it: every pixel of a basin image is data
+    ax.legend(handles=handles, fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2, frameon=False)
     ax.set_xlabel(r"initial $\theta$ [rad]")
     ax.set_ylabel(r"initial $\dot\theta$ [rad/s]")
     ax.set_title(f"{config.parameter} = {summary['value']:g}, y = ẏ = 0, cap {config.max_periods} periods", fontsize=9)
@@ -110,7 +111,7 @@ def plot_basin(rows: pd.DataFrame, summary: dict[str, Any], config: BasinConfig,
     bx.set_xlabel("forcing periods")
     bx.set_ylabel("fraction of starts")
     bx.legend(fontsize=7)
-    fig.savefig(output, dpi=150)
+    fig.savefig(output, dpi=150, bbox_inches="tight")
     return output
 
 
