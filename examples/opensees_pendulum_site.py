@@ -11,7 +11,7 @@ revert a step.
 Run it (the site first, in another terminal or in the background):
 
     pendsweep site --port 8090 --once -o site-log.parquet &
-    LD_LIBRARY_PATH=$(python -c "import openseespylinux, os; print(os.path.dirname(openseespylinux.__file__) + '/lib')") \\
+    LD_LIBRARY_PATH=$(python -c "import importlib.util as u; print(u.find_spec('openseespylinux').submodule_search_locations[0] + '/lib')") \\
         python examples/opensees_pendulum_site.py --port 8090
 
 It prints the pendulum's max |theta| over the last 20 periods from the site's
@@ -33,7 +33,7 @@ def steps_per_period(fe: float, dt: float = 1e-3) -> int:
 
 def build_and_run(port: int, alpha: float, fe: float, periods: int, steps_per_period: int,
                   M: float = 10.9, C: float = 20.0, K: float = 1910.0, M2: float = 0.9, C2: float = 10.0,
-                  host: str = "127.0.0.1") -> tuple[int, float]:  # fmt: skip
+                  host: str = "127.0.0.1", alpha_os: float = 1.0) -> tuple[int, float]:  # fmt: skip
     """Build the numerical substructure in OpenSees, run ``periods`` forcing periods; (status, wall seconds)."""
     import openseespy.opensees as ops
 
@@ -54,7 +54,7 @@ def build_and_run(port: int, alpha: float, fe: float, periods: int, steps_per_pe
     ops.numberer("Plain")
     ops.system("FullGeneral")
     ops.algorithm("Linear")
-    ops.integrator("AlphaOS", 1.0)  # alpha = 1: no numerical damping
+    ops.integrator("AlphaOS", alpha_os)  # alpha = 1: no numerical damping; 2/3 to 1 accepted
     ops.analysis("Transient")
     start = time.perf_counter()
     status = ops.analyze(periods * steps_per_period, dt)
@@ -72,10 +72,13 @@ def main() -> None:
     parser.add_argument("--periods", type=int, default=120)
     parser.add_argument("--steps-per-period", type=int, default=None, help="default: dt nearest 1 ms")
     parser.add_argument("--log", default="site-log.parquet", help="the site's -o file, read after the run")
+    parser.add_argument("--alpha-os", type=float, default=1.0, help="AlphaOS's alpha, 2/3 to 1 (1: no damping)")
     parser.add_argument("--compare", action="store_true", help="also run the emulated system (pendsweep)")
     args = parser.parse_args()
     n = args.steps_per_period or steps_per_period(args.fe)
-    status, wall = build_and_run(args.port, args.alpha, args.fe, args.periods, n, host=args.host)
+    status, wall = build_and_run(
+        args.port, args.alpha, args.fe, args.periods, n, host=args.host, alpha_os=args.alpha_os
+    )
     simulated = args.periods / args.fe
     print(
         f"OpenSees analyze status {status}; {simulated:.1f} s simulated in {wall:.2f} s ({simulated / wall:.1f}x real time)"

@@ -119,8 +119,8 @@ def test_the_step_is_fixed_by_the_first_trial():
     rig = _rig()
     rig.trial(0.0, 0.0, 0.0, DT)
     rig.commit()
-    with pytest.raises(ProtocolError, match="differs from the first step"):
-        rig.trial(0.0, 0.0, 0.0, 2.5 * DT)
+    with pytest.raises(ProtocolError, match="differs from the constant step"):
+        rig.trial(0.0, 0.0, 0.0, 3 * DT)  # a second step twice the first: not AlphaOS's alpha dt, then dt
 
 
 def test_force_limit_trips_on_the_load_cell():
@@ -189,12 +189,15 @@ def _ok_steps(client: RawClient, n: int) -> None:
         (lambda c: (c.setup(), _ok_steps(c, 3), c.frame(3, 0.0, 5.0, 0, 4 * DT)), "beyond the rig's limit"),
         (lambda c: (c.setup(), _ok_steps(c, 3), c.frame(3, 0.0, 0, 0, DT)), "before the committed time"),
         (lambda c: (c.setup(), _ok_steps(c, 2), c.frame(3, 0.0, 0.0, 0.0, 3 * DT)), "client closed the connection"),
-        (lambda c: None, "client silent for more than 1 s while sending set-up message (0 of 44 bytes)"),
-        (lambda c: c.setup(), "client silent for more than 1 s while sending frame"),
+        (lambda c: (c.setup(), c.frame(3, 0.0, 0, 0, 0.2)), "trial step 0.2 s outside the rig's accepted"),
+        (lambda c: (c.setup(), c.frame(3, 0.0, 0, 0, 1.5e-9)), "trial step 1.5e-09 s outside the rig's accepted"),
+        (lambda c: None, "client silent: set-up message not complete within 1 s (0 of 44 bytes)"),
+        (lambda c: c.setup(), "client silent: frame not complete within 1 s"),
     ],
     ids=[
         "truncated-setup", "gigabyte-frames", "truncated-frame", "unknown-action", "nan-action", "fractional-action",
-        "nan-trial", "inf-time", "stroke", "velocity", "time-backwards", "vanishes-mid-step", "silent", "silent-after-setup",
+        "nan-trial", "inf-time", "stroke", "velocity", "time-backwards", "vanishes-mid-step", "huge-step", "tiny-step",
+        "silent", "silent-after-setup",
     ],
 )  # fmt: skip
 def test_hostile_clients_end_in_one_line_and_a_held_rig(script, expect):
@@ -210,6 +213,58 @@ def test_hostile_clients_end_in_one_line_and_a_held_rig(script, expect):
         client.close()
     committed = site.log.n_rows
     assert site.rig.committed_step == committed  # the faulty step never committed: the rig held
+
+
+def test_the_velocity_limit_holds_without_a_declared_velocity():
+    """A client that sends no velocity cannot drive the platform past the limit: the rig's own speed counts."""
+    site = ThreadSite(timeout=1.0)
+    client = RawClient(site.port)
+    client.setup((1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 256))  # displacement and time only
+    client.frame(3, 1.5e-3, DT)  # 1.5 mm in a millisecond, with no velocity declared
+    _fault(site, "platform moved at 1.5 m/s, beyond the rig's limit")
+    client.close()
+
+
+def test_alphaos_short_first_step_is_accepted():
+    """OpenSees's AlphaOS with alpha < 1 sends its trials at alpha dt, then dt apart."""
+    rig = _rig(actuator="servo")
+    alpha = 0.9
+    for k in range(5):
+        rig.trial(1e-5 * k, 0.0, 0.0, (k + alpha) * DT)
+        rig.commit()
+    assert rig.dt == pytest.approx(DT) and rig.committed_step == 5
+    with pytest.raises(ProtocolError, match="differs from the constant step"):
+        rig.trial(0.0, 0.0, 0.0, (5 + alpha) * DT + 0.5 * DT)
+
+
+def test_the_client_refuses_garbage_from_a_site():
+    """A site is as hostile as a client: a NaN or absurd reading stops the run with one line (status 1)."""
+    import threading
+
+    from pendsweep.errors import RunFailure
+
+    for bad in (float("nan"), 1e300):
+        server = socket.create_server(("127.0.0.1", 0))
+        port = server.getsockname()[1]
+
+        def fake_site(value=bad, server=server):
+            conn, _ = server.accept()
+            conn.recv(44)
+            frame = conn.recv(8 * 16)
+            reply = np.zeros(16)
+            reply[1] = value  # the encoder angle
+            if frame:
+                conn.sendall(reply.tobytes())
+            time.sleep(0.5)
+            conn.close()
+
+        thread = threading.Thread(target=fake_site, daemon=True)
+        thread.start()
+        remote = make_backend("substructured", rig=f"tcp://127.0.0.1:{port}")
+        with pytest.raises(RunFailure, match="not finite or beyond"):
+            remote.run_point(FIG9_PO, remote.initial_state(FIG9_PO, 0, 0, 0.1, 0), 1, 1)
+        thread.join(5)
+        server.close()
 
 
 def test_an_oversized_frame_is_an_unknown_action_not_a_misread():
@@ -343,6 +398,7 @@ def test_a_sweep_runs_through_a_remote_rig(tmp_path):
     [
         (["--mode", "continue"], "use --mode fresh"),
         (["--mode", "fresh", "-B", "force_noise=0.5"], "force_noise describes the rig"),
+        (["--mode", "fresh", "-B", "harmonic3=0.1"], "harmonic3 describes the rig"),  # even at its default
         (["--mode", "fresh", "-B", "rig=udp://x:1"], "give tcp://HOST:PORT"),
     ],
 )
@@ -437,6 +493,21 @@ def test_site_stops_on_sigterm_with_its_log(tmp_path):
     status, err = site.stop()
     assert status == 0 and "stopped by a signal" in err
     assert pq.read_table(log).num_rows == 20
+
+
+def test_a_signal_mid_session_is_recorded_and_exits_1(tmp_path):
+    log = tmp_path / "log.parquet"
+    site = SiteProcess("--once", "-o", str(log))
+    client = RawClient(site.port)
+    client.setup()
+    for k in range(30):
+        client.step(0.0, 0.0, (k + 1) * DT)
+    status, err = site.stop()
+    client.close()
+    assert status == 1 and "stopped by a signal mid-session" in err
+    table = pq.read_table(log)
+    meta = __import__("json").loads(table.schema.metadata[b"pendsweep"])
+    assert table.num_rows == 30 and meta["sessions"][0]["reason"] == "the site was stopped by a signal"
 
 
 def test_realtime_paces_to_the_wall_clock():

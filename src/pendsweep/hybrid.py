@@ -63,7 +63,7 @@ def read_trace(path: Path, session: int | None = None) -> tuple[pd.DataFrame, di
     if meta.get("kind") == "site-log":
         if df.empty:
             raise ResultsError(f"site log {str(path)!r} holds no committed step")
-        sessions = sorted(df["session"].unique())
+        sessions = sorted(int(k) for k in df["session"].unique())
         chosen = sessions[-1] if session is None else session
         if chosen not in sessions:
             raise ResultsError(f"site log {str(path)!r} has sessions {sessions}; session {session} is not among them")

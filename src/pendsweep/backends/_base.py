@@ -183,6 +183,8 @@ def make_backend(name: str, **options: Any) -> Backend:
         raise ConfigError(
             f"unknown option(s) {', '.join(unknown)} for backend {name!r}; known: {', '.join(known) or 'none'}"
         )
+    if hasattr(cls, "check_options"):
+        cls.check_options(options)
     converted = {}
     for key, value in options.items():
         default = known[key].default

@@ -222,6 +222,7 @@ class SubstructuredBackend(BackendBase):
                      "lvdt_resolution", "lvdt_noise"):  # fmt: skip
             need(getattr(self, name) >= 0, f"{name} = {getattr(self, name)!r} must be >= 0")
         need(self.stroke > 0, f"stroke = {self.stroke!r} m must be > 0")
+        need(self.seed >= 0, f"seed = {self.seed!r} must be an integer >= 0")
         if self.rig:
             from ..site.client import parse_rig_url
 
@@ -232,6 +233,17 @@ class SubstructuredBackend(BackendBase):
                     getattr(self, name) == defaults[name],
                     f"{name} describes the rig, which is remote (rig = {self.rig}): set it at the site "
                     f"(pendsweep site -B {name}=...)",
+                )
+
+    @classmethod
+    def check_options(cls, options: dict) -> None:
+        """Refuse rig options given with a remote rig, even at their default values (they are the site's)."""
+        if options.get("rig"):
+            given = [name for name in REMOTE_RIG_OPTIONS if name in options]
+            if given:
+                raise ConfigError(
+                    f"{given[0]} describes the rig, which is remote (rig = {options['rig']}): set it at the site "
+                    f"(pendsweep site -B {given[0]}=...)"
                 )
 
     # -- contract -----------------------------------------------------------------

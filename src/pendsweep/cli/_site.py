@@ -60,7 +60,8 @@ def site_command(port, host, once, output, theta0, thetadot0, sets, rig_opts, re
     element, or `--backend substructured -B rig=tcp://HOST:PORT`. One client at
     a time; each starts the rig from its initial state. Exit status with --once:
     0 when the client ended with die, 1 on a fault (the reason is on stderr and
-    in the log's metadata); 2 for a bad command line.
+    in the log's metadata); 2 for a bad command line. SIGINT or SIGTERM stop
+    the site with its log written: status 0 between sessions, 1 mid-session.
     """
     import signal
 
@@ -70,17 +71,24 @@ def site_command(port, host, once, output, theta0, thetadot0, sets, rig_opts, re
     from ..site.server import SiteServer
 
     if output is not None:
+        from ..results import check_writable
+
         check_output(output, "-o/--output", (".parquet",))
+        check_writable(output)  # before listening: a session must never be lost to an unwritable log
     params = ModelParams.from_mapping(model_sets(sets))
     rig, config = rig_from_options(key_values(rig_opts, "-B"), params, theta0, thetadot0)
     config |= {"host": host, "port": port, "once": once, "realtime": realtime, "timeout_s": timeout}
     log = SiteLog(output, config)
+    import socket
+
+    from ..errors import ConfigError, RunFailure
+
     try:
         server = SiteServer(rig, log, host=host, port=port, once=once, timeout=timeout, realtime=realtime)
     except OSError as exc:
-        from ..errors import RunFailure
-
-        raise RunFailure(f"cannot listen on {host}:{port}: {exc.strerror or exc}") from None
+        if isinstance(exc, socket.gaierror) or (exc.errno or 0) < 0:  # not an address (getaddrinfo's codes are < 0)
+            raise ConfigError(f"--host {host!r} is not an address to listen on ({exc.strerror or exc})") from None
+        raise RunFailure(f"cannot listen on {host}:{port}: {exc.strerror or exc}") from None  # e.g. a port in use
 
     def stop(signum, frame):
         raise KeyboardInterrupt
@@ -89,7 +97,8 @@ def site_command(port, host, once, output, theta0, thetadot0, sets, rig_opts, re
     try:
         status = server.serve()
     except KeyboardInterrupt:
-        click.echo("pendsweep site: stopped by a signal; log written", err=True)
-        status = 0
+        cut = bool(server.sessions) and server.sessions[-1].interrupted
+        click.echo(f"pendsweep site: stopped by a signal{' mid-session' if cut else ''}; log written", err=True)
+        status = 1 if cut else 0
     if status:
         raise SystemExit(status)

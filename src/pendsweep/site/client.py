@@ -54,6 +54,8 @@ from .protocol import Action, FrameReader, ProtocolError, Setup, send_all
 CLIENT_SETUP = Setup((1, 1, 1, 0, 1), (2, 2, 1, 1, 1), 16)
 #: Seconds to wait for a connection and for each reply.
 CONNECT_TIMEOUT = 10.0
+#: Largest magnitude of any daq value a rig may reply (SI units): beyond it the reply is garbage.
+REPLY_LIMIT = 1e6
 
 
 def parse_rig_url(url: str) -> tuple[str, int]:
@@ -116,6 +118,13 @@ class RemoteRig:
             self.reader.read(self._in, "reply")
         except ProtocolError as exc:
             raise RunFailure(f"rig at tcp://{self.host}:{self.port}: {str(exc).replace('client', 'site')}") from None
+        # the site's bytes are as hostile as a client's: a reading that no rig can give stops the run
+        values = self._reply[:7]
+        if not np.all(np.isfinite(values)) or np.any(np.abs(values) > REPLY_LIMIT):
+            raise RunFailure(
+                f"rig at tcp://{self.host}:{self.port} replied {values.tolist()}: not finite or beyond "
+                f"{REPLY_LIMIT:g} (x, theta, x', theta', x'', F, t)"
+            )
 
     @property
     def reply(self) -> np.ndarray:

@@ -23,6 +23,7 @@ violation raises :class:`ProtocolError` with a one-line reason.
 from __future__ import annotations
 
 import enum
+import os
 import select
 import socket
 import struct
@@ -196,10 +197,12 @@ class FrameReader:
                 if waited > self.spin:
                     left = self.timeout - waited
                     if left <= 0 or not select.select([sock], [], [], left)[0]:
+                        state = "silent" if got == 0 else "too slow"
                         raise ProtocolError(
-                            f"client silent for more than {self.timeout:g} s while sending {what} "
-                            f"({got} of {want} bytes)"
+                            f"client {state}: {what} not complete within {self.timeout:g} s ({got} of {want} bytes)"
                         ) from None
+                else:
+                    os.sched_yield()  # polling gives way to any process that can run, the peer included
                 continue
             except OSError as exc:
                 raise ProtocolError(f"connection failed while reading {what}: {exc.strerror or exc}") from None

@@ -25,14 +25,19 @@ import numpy as np
 from ..backends.substructured import SubstructuredBackend
 from ..errors import ConfigError
 from ..kernels._site import N_READINGS, READING_NAMES, rig_reading, rig_trial
+from ..kernels._substructured import S_X
 from ..params import ModelParams
 from .protocol import ProtocolError
 
 #: Noise is drawn in blocks of this many steps from ``default_rng([seed, block])``,
 #: so any step's noise is known without drawing the ones before it.
 NOISE_BLOCK = 65536
-#: Relative tolerance on a trial's step against the first one.
+#: Relative tolerance on a trial's step against the constant one.
 STEP_TOLERANCE = 1e-6
+#: Steps a rig accepts [s]: 10 us (the command delay line holds transport_delay / step samples) to 50 ms.
+MIN_STEP, MAX_STEP = 1e-5, 0.05
+#: Smallest alpha of OpenSees's AlphaOS (2/3): a first step this much shorter than the second is accepted.
+ALPHA_MIN = 2.0 / 3.0 - 1e-9
 READING_INDEX = {name: i for i, name in enumerate(READING_NAMES)}
 
 
@@ -109,6 +114,7 @@ class SiteRig:
     def reset(self) -> None:
         """The rig at its initial state, time 0, step not yet known."""
         self.dt: float | None = None
+        self.first_step: float | None = None
         self._configure(self.backend.dt)
         self.committed_time = 0.0
         self.committed_step = 0
@@ -141,7 +147,10 @@ class SiteRig:
         return float(nf[i]), float(nx[i])
 
     def _fix_step(self, dt: float) -> None:
-        """The first trial fixes the step; the delay line is rebuilt for it, the rig unchanged."""
+        """Fix the constant step (the first trial's, or the second's after a short first one).
+
+        The delay line is rebuilt for it, the rig's own state unchanged.
+        """
         if self._backend.n_cmd != dataclasses.replace(self.backend, dt=dt).n_cmd:
             old = self.committed
             self._configure(dt)
@@ -163,6 +172,12 @@ class SiteRig:
         limits, time going backwards, a changed step, or a reading beyond
         the load cell's range; the committed rig is then untouched.
         """
+        try:
+            return self._trial(d, v, a, t)
+        except ConfigError as exc:  # options that no step of this client can serve
+            raise ProtocolError(f"the rig cannot run this client's step: {exc}") from None
+
+    def _trial(self, d: float, v: float, a: float, t: float | None) -> np.ndarray:
         for name, value in (("displacement", d), ("velocity", v), ("acceleration", a)):
             if not math.isfinite(value):
                 raise ProtocolError(f"trial {name} {value!r} is not finite")
@@ -183,11 +198,17 @@ class SiteRig:
             return self.readings
         if step < 0:
             raise ProtocolError(f"trial time {t:.9g} s is before the committed time {self.committed_time:.9g} s")
+        if not MIN_STEP <= step <= MAX_STEP:
+            raise ProtocolError(f"trial step {step:.6g} s outside the rig's accepted {MIN_STEP:g} to {MAX_STEP:g} s")
+        if self.committed_step == 1 and self.dt == self.first_step and step > self.dt >= ALPHA_MIN * step:
+            # OpenSees's AlphaOS with alpha < 1 evaluates at t + alpha dt: a first step alpha dt, then dt
+            self._fix_step(step)
         if self.dt is None:
             self._fix_step(step)
+            self.first_step = step
         elif abs(step - self.dt) > STEP_TOLERANCE * self.dt:
             raise ProtocolError(
-                f"trial step {step:.9g} s differs from the first step {self.dt:.9g} s "
+                f"trial step {step:.9g} s differs from the constant step {self.dt:.9g} s "
                 "(the rig's command delay line needs a constant step)"
             )
         state = self.committed.copy()
@@ -196,11 +217,16 @@ class SiteRig:
         nf, nx = self._noise(n)
         time_next = self.committed_time + self.dt if t is None else t
         phase = 2.0 * math.pi * self.params.fe * time_next
+        x_before = state[S_X]
         rig_trial(state, d, v, self._p, self._pend, self._cfg, self.dt, nf, nx, phase, out)
         if not np.all(np.isfinite(out)):
             raise ProtocolError(f"the rig diverged at t = {time_next:.6g} s (non-finite state)")
         if abs(out[READING_INDEX["x"]]) > lim.stroke:
             raise ProtocolError(f"platform at {out[READING_INDEX['x']]:.6g} m beyond the stroke +-{lim.stroke:g} m")
+        # the platform's own speed, whatever velocity the client declared (or left out)
+        speed = max(abs(out[READING_INDEX["xdot"]]), abs(out[READING_INDEX["x"]] - x_before) / self.dt)
+        if speed > lim.velocity:
+            raise ProtocolError(f"platform moved at {speed:.6g} m/s, beyond the rig's limit +-{lim.velocity:g} m/s")
         if abs(out[READING_INDEX["Fs"]]) > lim.force:
             raise ProtocolError(f"load cell reads {out[READING_INDEX['Fs']]:.6g} N, beyond its range +-{lim.force:g} N")
         self.trial_state = state

@@ -81,6 +81,7 @@ class SessionSummary:
     misses: int = 0
     reason: str = "die"
     ok: bool = True
+    interrupted: bool = False
 
     def quantile_us(self, q: float) -> float:
         """Quantile ``q`` of the service times [us] of the steps whose force was asked for."""
@@ -202,6 +203,13 @@ def serve_session(conn: socket.socket, rig: SiteRig, log: SiteLog, timeout: floa
     except ProtocolError as exc:
         summary.ok = False
         summary.reason = str(exc)
+    except KeyboardInterrupt:  # SIGINT or SIGTERM mid-session: the session is recorded, then the site stops
+        summary.ok = False
+        summary.reason = "the site was stopped by a signal"
+        summary.interrupted = True
+    except Exception as exc:  # a defect of the site itself: one line, the session ends, the site goes on
+        summary.ok = False
+        summary.reason = f"internal error ({type(exc).__name__}: {exc})".replace("\n", " ")
     finally:
         if gc_was_enabled:
             gc.enable()
@@ -341,6 +349,8 @@ class SiteServer:
                 self.log.write()
                 _say(summary.line())
                 status = 0 if summary.ok else 1
+                if summary.interrupted:
+                    raise KeyboardInterrupt
                 if self.once:
                     break
         finally:
