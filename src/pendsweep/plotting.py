@@ -35,6 +35,19 @@ def new_figure(figsize: tuple[float, float], layout: str | None = "constrained")
     return fig
 
 
+def legend_below(ax, **kwargs):
+    """A legend under the axes, where it cannot cover data (images, dense branches): centred, in columns."""
+    kwargs.setdefault("fontsize", 7)
+    kwargs.setdefault("ncol", 3)
+    return ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.13), frameon=False, **kwargs)
+
+
+def legend_right(ax, **kwargs):
+    """A legend right of the axes, for stacked panels (save with ``bbox_inches="tight"`` to keep it)."""
+    kwargs.setdefault("fontsize", 7)
+    return ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), **kwargs)
+
+
 #: Plotted observables with their axis labels.
 OBSERVABLES = {
     "theta_peak": r"$\theta$ peak [rad]",

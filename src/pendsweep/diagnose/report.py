@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ..data import UNITS
+from ..plotting import legend_right
 from .effects import EFFECTS, model_file, split_values
 from .fit import CHANNEL_RATIO, P_VALUE, UNEXPLAINED_RATIO, Diagnosis
 from .signatures import backbone, cross_correlation, extrema, residual_spectrum, summarize
@@ -54,7 +55,7 @@ def _figures(diag: Diagnosis, outdir: Path) -> list[Path]:
             ax.plot(t, ext.sim[c], "C3--", lw=0.8, label=f"extended ({diag.cause})")
         _shade_compared(ax, rp)
         ax.set_ylabel(f"{c} [{units[c]}]")
-    axes[0, 0].legend(loc="upper right", fontsize=8)
+    legend_right(axes[0, 0], fontsize=8)
     axes[-1, 0].set_xlabel("t [s]")
     files.append(_save(fig, outdir / "measured_vs_models.png"))
 
@@ -64,7 +65,7 @@ def _figures(diag: Diagnosis, outdir: Path) -> list[Path]:
         ax.plot(t, ext.sim[c] - rp.meas[c], "C3-", lw=0.6, label="extended")
         _shade_compared(ax, rp)
         ax.set_ylabel(f"residual {c} [{units[c]}]")
-    axes[0, 0].legend(loc="upper right", fontsize=8)
+    legend_right(axes[0, 0], fontsize=8)
     axes[-1, 0].set_xlabel("t [s]")
     files.append(_save(fig, outdir / "residuals.png"))
 
@@ -83,7 +84,7 @@ def _figures(diag: Diagnosis, outdir: Path) -> list[Path]:
     ax.set_xlabel("f [Hz]")
     ax.set_title("spectra of residual / std(channel)", fontsize=9)
     if ax.get_legend_handles_labels()[0]:  # no curve when every residual is non-finite
-        ax.legend(fontsize=7)
+        legend_right(ax)
     k = 1
     if rp.kind != "free_decay":
         ax = axes[k]
@@ -95,7 +96,7 @@ def _figures(diag: Diagnosis, outdir: Path) -> list[Path]:
         ax.set_xlabel("lag [s]")
         ax.set_title("corr(nominal residual, Fe)", fontsize=9)
         if ax.get_legend_handles_labels()[0]:
-            ax.legend(fontsize=7)
+            legend_right(ax)
         k += 1
     ax, ax2 = axes[k], axes[k + 1]
     if "theta" in rp.constant:  # the pendulum never moved (compared by its level only): no decay to show
@@ -147,7 +148,7 @@ def _shade_compared(ax, rp) -> None:
 
 def _save(fig, path: Path) -> Path:
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=110, bbox_inches="tight")  # the legends sit right of the panels
     import matplotlib.pyplot as plt
 
     plt.close(fig)

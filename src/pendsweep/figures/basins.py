@@ -19,7 +19,7 @@ from matplotlib.patches import Patch
 from ..basins import BasinConfig, run_basins, scan_summary, survival
 from ..maps import MapConfig, hopf_boundaries, run_map
 from ..params import PARAM_SPECS
-from ..plotting import new_figure
+from ..plotting import legend_below, new_figure
 from . import figure
 
 #: Colour per motion class; periodic orbits by period.
@@ -84,8 +84,7 @@ def plot_basin(rows: pd.DataFrame, summary: dict[str, Any], config: BasinConfig,
         ax.scatter(rows.theta0, rows.thetadot0, c=[colours[i] for i in index], s=4, linewidths=0)
     handles = [Patch(color=colours[i], label=n) for i, n in enumerate(names)]
     handles.append(Patch(color="tab:red", label=f"unsettled ({100 * summary['unsettled']:.1f}%)"))
-    # below the map, never over it: every pixel of a basin image is data
-    ax.legend(handles=handles, fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2, frameon=False)
+    legend_below(ax, handles=handles, ncol=2)  # every pixel of a basin image is data
     ax.set_xlabel(r"initial $\theta$ [rad]")
     ax.set_ylabel(r"initial $\dot\theta$ [rad/s]")
     ax.set_title(f"{config.parameter} = {summary['value']:g}, y = ẏ = 0, cap {config.max_periods} periods", fontsize=9)
@@ -172,9 +171,7 @@ def plot_map(rows: pd.DataFrame, config: MapConfig, boundaries: pd.DataFrame | N
         vmin=-0.5,
         vmax=len(present) - 0.5,
     )
-    axes[0].legend(
-        handles=[Patch(color=_colour(c), label=c) for c in present], fontsize=7, loc="upper left", framealpha=0.85
-    )
+    legend_below(axes[0], handles=[Patch(color=_colour(c), label=c) for c in present])
     im = axes[1].imshow(
         swing, origin="lower", aspect="auto", extent=extent, interpolation="nearest", cmap="viridis", vmin=0, vmax=np.pi
     )
@@ -197,7 +194,7 @@ def plot_map(rows: pd.DataFrame, config: MapConfig, boundaries: pd.DataFrame | N
         ax.set_xlabel(_axis_label(config.x))
         ax.set_ylabel(_axis_label(config.y))
     if boundaries is not None:
-        axes[1].legend(fontsize=7, loc="upper left")
+        legend_below(axes[1])
     axes[0].set_title(f"motion after ≤ {config.max_periods} periods from θ = {config.initial[0]:g} rad", fontsize=9)
     fig.savefig(output, dpi=150)
     return output

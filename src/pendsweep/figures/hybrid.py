@@ -55,9 +55,10 @@ def fig9_hybrid(outdir: Path, quick: bool) -> list[Path]:
         ax_y.set_ylabel("displacement [m]")
         ax_t.set_ylabel("angle [rad]")
         ax_t.set_xlabel("time after the transient [s]")
-        for ax in (ax_y, ax_t):
-            ax.legend(loc="upper right", fontsize=7)
-    fig.tight_layout()
+    # one legend for the four panels, under them: the time series fill every panel
+    handles = axes[0, 0].get_legend_handles_labels()[0] + axes[1, 0].get_legend_handles_labels()[0]
+    fig.legend(handles=handles, loc="lower center", ncol=4, fontsize=8, frameon=False)
+    fig.tight_layout(rect=(0, 0.05, 1, 1))
     path = outdir / "fig9_hybrid.png"
     fig.savefig(path, dpi=120)
     return [path]
