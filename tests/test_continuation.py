@@ -21,7 +21,7 @@ from pendsweep.continuation import (
     Settings,
     semi_trivial_section,
 )
-from pendsweep.continuation.core import _Scaled
+from pendsweep.continuation.algebra import _Scaled
 from pendsweep.hopf import hopf_floquet
 from pendsweep.kernels._emulated import eq11_params
 from pendsweep.kernels._rhs import eq11_rhs

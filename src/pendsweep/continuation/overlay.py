@@ -21,7 +21,7 @@ from matplotlib.axes import Axes
 from ..errors import ConfigError
 from ..kernels import RECORD_COLUMNS
 from ..params import PARAM_SPECS, ModelParams
-from .core import BRANCH_POINT, FOLD, NEIMARK_SACKER, PERIOD_DOUBLING
+from .problem import BRANCH_POINT, FOLD, NEIMARK_SACKER, PERIOD_DOUBLING
 from .run import read_json
 from .shooting import PendulumShooting
 

@@ -40,7 +40,8 @@ import numpy as np
 from ..errors import ConfigError
 from ..params import PARAM_SPECS, ModelParams, check_value
 from ..results import check_writable, read_results, run_metadata
-from .core import Continuation, Result, Settings
+from .core import Continuation
+from .problem import Result, Settings
 from .shooting import PendulumShooting, semi_trivial_section
 
 #: Parameters that can be continued (derived M1/C1 are continued as M/C).

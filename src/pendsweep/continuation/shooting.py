@@ -23,7 +23,7 @@ from ..kernels import N_RECORD_COLUMNS, STATUS_OK, wrap_angle
 from ..kernels._layout import REC_THETA_SEC, REC_THETADOT_SEC, REC_Y_SEC, REC_YDOT_SEC
 from ..kernels._variational import variational_periods
 from ..params import ModelParams
-from .core import Evaluation, EvaluationFailed
+from .problem import Evaluation, EvaluationFailed
 
 #: Record columns of the section (y, ydot, theta, thetadot).
 SECTION = [REC_Y_SEC, REC_YDOT_SEC, REC_THETA_SEC, REC_THETADOT_SEC]
@@ -42,7 +42,7 @@ class OrbitInfo:
 
 
 class PendulumShooting:
-    """The ``k``-period stroboscopic map of Eq. (11) as a :class:`~pendsweep.continuation.core.MapProblem`.
+    """The ``k``-period stroboscopic map of Eq. (11) as a :class:`~pendsweep.continuation.problem.MapProblem`.
 
     Parameters
     ----------
