@@ -20,7 +20,8 @@ from click.testing import CliRunner
 from pendsweep.cli import main
 from pendsweep.data import find_free_swing_data, read_record, write_record
 from pendsweep.diagnose import EFFECTS, Replay, diagnose
-from pendsweep.diagnose.fit import Fit, block_test
+from pendsweep.diagnose.fitting import Fit
+from pendsweep.diagnose.judging import block_test
 from pendsweep.diagnose.testbench import CALIBRATION_SEEDS, TEST_SEEDS, Case, generate, truth_value
 from pendsweep.params import ENCODER_RESOLUTION
 

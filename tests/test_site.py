@@ -502,6 +502,8 @@ def test_a_signal_mid_session_is_recorded_and_exits_1(tmp_path):
     client.setup()
     for k in range(30):
         client.step(0.0, 0.0, (k + 1) * DT)
+    client.frame(10)
+    client.reply()  # the site has read every frame before: the 30th commit is in
     status, err = site.stop()
     client.close()
     assert status == 1 and "stopped by a signal mid-session" in err

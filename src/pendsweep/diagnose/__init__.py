@@ -2,7 +2,8 @@
 the extended model and its gain on held-out data."""
 
 from .effects import EFFECTS, Effect, applicable
-from .fit import Diagnosis, Fit, Problem, diagnose, fit_model
+from .fit import Diagnosis, diagnose
+from .fitting import Fit, Problem, fit_model
 from .replay import Replay
 from .synth import Sensors, synthesize
 

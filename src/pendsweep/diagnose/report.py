@@ -11,8 +11,9 @@ import numpy as np
 from ..data import UNITS
 from ..plotting import legend_right
 from .effects import EFFECTS, model_file, split_values
-from .fit import CHANNEL_RATIO, P_VALUE, UNEXPLAINED_RATIO, Diagnosis
+from .fit import Diagnosis
 from .signatures import backbone, cross_correlation, extrema, residual_spectrum, summarize
+from .thresholds import CHANNEL_RATIO, P_VALUE, UNEXPLAINED_RATIO
 
 
 def extended_params(diag: Diagnosis) -> dict[str, float]:

@@ -26,7 +26,7 @@ steps, 20 um rms noise and a slow random-walk drift, load cell 0.1 N rms noise
 and drift.
 
 Seed ranges: :data:`CALIBRATION_SEEDS` (range A) are the only records the
-verdict thresholds of :mod:`pendsweep.diagnose.fit` were chosen on;
+verdict thresholds of :mod:`pendsweep.diagnose.thresholds` were chosen on;
 :data:`TEST_SEEDS` (range B) are what the tests and the ``diagnosis``
 benchmark check.
 """
