@@ -155,3 +155,14 @@ def test_the_import_graph_sees_lazy_imports():
 def test_no_import_cycle_between_pendsweep_modules():
     cycles = _cycles(_import_graph())
     assert not cycles, "import circles: " + "; ".join(" <-> ".join(c) for c in cycles)
+
+
+#: The longest a module may grow (issue 24 split the four over 680 lines along their concepts).
+MAX_MODULE_LINES = 700
+
+
+def test_no_module_is_longer_than_one_concept_reads():
+    long = {
+        str(p.relative_to(SRC)): n for p in _python_files() if (n := len(p.read_text().splitlines())) > MAX_MODULE_LINES
+    }
+    assert not long, f"split along their concepts: {long}"

@@ -12,6 +12,7 @@ from . import (
     _basins,  # noqa: F401,E402  (registers basins and map)
     _continue,  # noqa: F401,E402  (registers continue)
     _data,  # noqa: F401,E402  (registers diagnose, fit-damping, synth)
+    _figures,  # noqa: F401,E402  (registers plot, figures, params)
     _hopf,  # noqa: F401,E402  (registers the hopf command)
     _site,  # noqa: F401,E402  (registers site)
     _stability,  # noqa: F401,E402  (registers margin)

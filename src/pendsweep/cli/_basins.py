@@ -17,7 +17,7 @@ from ..scan import PER_START_MAX_WORK
 from ._app import FINITE, LazyChoice, main
 from ._checks import FIGURE_SUFFIXES, check_output, key_values
 from ._executor import apply_options, checkpoint_option, executor_options, max_work, work_options
-from ._sweep import DEVICE_OPTION, load_model_file
+from ._sweep_options import DEVICE_OPTION, load_model_file
 
 _MODEL_FLAGS = (("alpha", "alpha", "N"), ("fe", "fe", "Hz"), ("M", "M_", "kg"), ("C", "C_", "kg/s"), ("K", "K_", "N/m"))
 

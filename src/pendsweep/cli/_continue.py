@@ -11,7 +11,8 @@ from ..errors import ConfigError
 from ..params import PARAM_SPECS
 from ._app import FINITE, LazyChoice, main
 from ._checks import FIGURE_SUFFIXES, check_output, model_sets
-from ._sweep import load_model_file, read_sweep_metadata
+from ._sweep import read_sweep_metadata
+from ._sweep_options import load_model_file
 
 
 def _aliases(parameter: str) -> set[str]:

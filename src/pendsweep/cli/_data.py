@@ -79,7 +79,7 @@ def diagnose(data, json_out, report_dir, horizon, folds, causes, jobs, model_fil
     from ..diagnose import Replay
     from ..diagnose import diagnose as run
     from ..diagnose.report import write_report
-    from ._sweep import load_model_file
+    from ._sweep_options import load_model_file
 
     for path in data:
         check_input(path, "record")

@@ -14,7 +14,8 @@ from ..sweepfile import MAX_POINTS
 from ._app import PATH, SMALL_ANGLE, FiniteFloat, LazyChoice, main
 from ._checks import check_output, key_values, model_sets
 from ._executor import apply_options, checkpoint_option, executor_options, work_options
-from ._sweep import DEVICE_OPTION, prepare_output
+from ._sweep import prepare_output
+from ._sweep_options import DEVICE_OPTION
 
 #: Model parameters the scan itself sets: alpha is searched, fe follows --what, M is --M.
 SCANNED = {"alpha": "the searched amplitude", "fe": "set by --what (fe = omega_hat w_p / pi)", "M": "set by --M"}
