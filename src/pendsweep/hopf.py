@@ -81,6 +81,8 @@ from .scan import DEFAULT_MAX_WORK, Finished, UnitResult, Work, run_scan, sample
 from .status import Status
 
 METHODS = ("analytic", "floquet", "simulate")
+#: Longer even grids of omega_hat are stored in the metadata as ``{"linspace": [first, last, n]}``.
+LINSPACE_MIN = 16
 #: Points of one unit of the closed form, Eq. (12), evaluated at once (a million values: 16 units).
 ANALYTIC_CHUNK = 65536
 #: Envelope [rad] up to which the kicked pendulum is treated as linear (or 4 kicks, if larger).
@@ -467,6 +469,10 @@ class HopfConfig:
         d["backend_options"] = dict(d["backend_options"])
         for name in ("omega_hat", "masses", "methods"):
             d[name] = list(d[name])
+        w = np.asarray(self.omega_hat)
+        if w.size > LINSPACE_MIN and np.array_equal(w, np.linspace(w[0], w[-1], w.size)):
+            # an even grid, exactly: stored as its three numbers (a million values are 20 MB of JSON)
+            d["omega_hat"] = {"linspace": [float(w[0]), float(w[-1]), int(w.size)]}
         d["model"] = ModelParams.from_mapping(self.model).to_dict()
         d["backend_options"] = make_backend(self.backend, **self.backend_options).options()
         return d
