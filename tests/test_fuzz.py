@@ -392,6 +392,8 @@ OTHER: list[tuple[list[str], str]] = [
     (["basins", "--alpha", "40", "--grid", "100000x100000"], "GiB of memory"),
     (["basins", "--alpha", "40", "--grid", "100x100", "--max-work", "1e6"], "pass --max-work 4e9"),
     (["map", "alpha", "fe", "--alpha", "0:45:100000", "--fe", "2:3:100000"], "GiB of memory"),
+    (["synth", "s.csv", "--duration", "1e5", "--rate", "1e6"], "GiB of memory, more than this machine's"),
+    (["trace", "t.parquet", "--periods", "100000", "--fe", "0.5"], "GiB of memory, more than this machine's"),
     (["site", "--port", "70000"], "70000 is not in the range"),
     (["site", "-B", "seed=-1"], "seed = -1"),
     (["site", "-o", "{blocker}/log.parquet"], "blocker"),

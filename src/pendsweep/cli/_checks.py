@@ -133,3 +133,15 @@ def refuse_fixed(swept: str, fixed: dict[str, float], where: dict[str, str]) -> 
             f"{where.get(swept, '--set ' + swept)}={fixed[swept]:g} fixes the swept parameter {swept!r}; "
             "drop it (the sweep's --from/--to set it)"
         )
+
+
+def check_memory(needed: float, what: str) -> None:
+    """Refuse (exit 2) work whose results need more memory [bytes] than this machine has, naming both."""
+    from ..scan import machine_memory
+
+    memory = machine_memory()
+    if needed > memory:
+        raise ConfigError(
+            f"{what} needs about {needed / 2**30:.3g} GiB of memory, more than this machine's "
+            f"{memory / 2**30:.3g} GiB; make it shorter or coarser"
+        )

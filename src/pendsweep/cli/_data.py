@@ -10,7 +10,7 @@ import click
 
 from ..errors import ConfigError
 from ._app import ANGLE, FINITE, PATH, RATE, SEED, FiniteFloat, main
-from ._checks import check_input, check_output, check_output_dir
+from ._checks import check_input, check_memory, check_output, check_output_dir
 
 
 def _pairs(items: tuple[str, ...], what: str) -> dict[str, float]:
@@ -100,6 +100,11 @@ def diagnose(data, json_out, report_dir, horizon, folds, causes, jobs, model_fil
     click.echo(text)
 
 
+#: Memory per sample of a synthetic record while it is built and written [bytes]: about ten channels
+#: of 8 bytes, held as arrays, a table and the text being written.
+RECORD_BYTES_PER_SAMPLE = 320
+
+
 @main.command()
 @click.argument("out", type=PATH)
 @click.option(
@@ -175,6 +180,7 @@ def synth(out, kind, effects, params, params_old, duration, rate, seed, theta_in
     check_output(out, "OUT", (".csv", ".parquet"))
     if Path(out).suffix.lower() == ".csv":
         check_output(Path(out).with_suffix(".json"), "OUT (its .json sidecar)")
+    check_memory(duration * rate * RECORD_BYTES_PER_SAMPLE, f"a record of {duration:g} s at {rate:g} Hz")
     theta_init = _one_of(theta_init, theta_init_old, "--theta0", "--theta-init", 1.0)
     thetadot_init = _one_of(thetadot_init, thetadot_init_old, "--thetadot0", "--thetadot-init", 0.0)
     base = TABLE_IV if kind == "free_decay" else FIG9_PO

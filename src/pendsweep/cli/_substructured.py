@@ -9,7 +9,7 @@ import click
 from ..errors import ConfigError
 from ..params import ModelParams
 from ._app import ANGLE, FINITE, PATH, RATE, FiniteFloat, LazyChoice, main
-from ._checks import FIGURE_SUFFIXES, check_input, check_output, key_values, model_sets
+from ._checks import FIGURE_SUFFIXES, check_input, check_memory, check_output, key_values, model_sets
 
 
 def _model(alpha, fe, M, C, sets) -> ModelParams:
@@ -20,6 +20,11 @@ def _model(alpha, fe, M, C, sets) -> ModelParams:
                 raise ConfigError(f"--{key} {value:g} and --set {key}={changes[key]:g} both fix {key}; give one")
             changes[key] = value
     return ModelParams.from_mapping({"alpha": 5.0, "fe": 2.2} | changes)  # Fig. 9(a) PO unless told
+
+
+#: Memory per trace row while it is built and written [bytes]: 15 columns of 8 bytes, in the kernel's
+#: array, the DataFrame and the Arrow table.
+TRACE_BYTES_PER_ROW = 400
 
 
 @main.command("trace")
@@ -99,6 +104,8 @@ def trace_command(
     check_output(output, "OUTPUT", (".parquet",))
     params = _model(alpha, fe, M_, C_, sets)
     b = make_backend(backend, **key_values(backend_opts, "--backend-option"))
+    rows = periods * b.steps_per_period(params) / stride
+    check_memory(rows * TRACE_BYTES_PER_ROW, f"a trace of {rows:.3g} rows ({periods} periods, stride {stride})")
     df = run_trace(b, params, (y0, 0.0, theta0, thetadot0), transient_periods, periods, stride)
     status = df.attrs.get("status", "ok")
     meta = {"params": params.to_dict(), "backend": backend, "backend_options": b.options(),
