@@ -377,6 +377,14 @@ def controller_tick(s, hist, jstep, k, tick, dt, we, table, model, pend, ms, cfg
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
+def stroke_status(x, ys, stroke):
+    """``STATUS_OK`` while ``|x|`` and ``|y*|`` are within the stroke [m]; past it, unstable (finite) or diverged."""
+    if abs(x) <= stroke and abs(ys) <= stroke:
+        return STATUS_OK
+    return STATUS_UNSTABLE if math.isfinite(x) and math.isfinite(ys) else STATUS_DIVERGED
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
 def close_period(s, row, records, r_idx, status, hf_run, tracing, cfg):
     """Period-end bookkeeping: divergence, trips, rewrapping and the record row.
 
@@ -464,9 +472,8 @@ def substructured_loop(state, p, cfg, noise_f, noise_x, transient_periods, recor
             state[S_XPREV2], state[S_XPREV1] = state[S_XPREV1], x
             sum_x2 += x * x
             sum_h2 += d2 * d2
-            if not (abs(x) <= cfg.stroke and abs(state[S_Y]) <= cfg.stroke):
-                finite = math.isfinite(x) and math.isfinite(state[S_Y])
-                status = STATUS_UNSTABLE if finite else STATUS_DIVERGED
+            status = stroke_status(x, state[S_Y], cfg.stroke)
+            if status != STATUS_OK:
                 break
         if status == STATUS_OK:
             hf_run = hf_run + 1 if high_frequency_growth(sum_x2, sum_h2, n, dt, we, cfg) else 0

@@ -35,7 +35,7 @@ import numpy as np
 from ..errors import ConfigError, RunFailure
 from ..kernels import N_RECORD_COLUMNS
 from ..kernels._emulated import forcing_table
-from ..kernels._layout import STATUS_DIVERGED, STATUS_OK, STATUS_UNSTABLE
+from ..kernels._layout import STATUS_OK
 from ..kernels._records import TWO_PI, record_open
 from ..kernels._site import client_tick
 from ..kernels._substructured import (
@@ -47,6 +47,7 @@ from ..kernels._substructured import (
     S_Y,
     close_period,
     high_frequency_growth,
+    stroke_status,
 )
 from .protocol import Action, FrameReader, ProtocolError, Setup, send_all
 
@@ -207,9 +208,8 @@ def run_remote(backend, params, state, transient: int, n_rec: int, trace_rows: i
                 d2 = reply[4] * dt * dt
                 sum_x2 += x * x
                 sum_h2 += d2 * d2
-                if not (abs(x) <= cfg.stroke and abs(state[S_Y]) <= cfg.stroke):
-                    finite = math.isfinite(x) and math.isfinite(state[S_Y])
-                    status = STATUS_UNSTABLE if finite else STATUS_DIVERGED
+                status = stroke_status(x, state[S_Y], cfg.stroke)
+                if status != STATUS_OK:
                     break
             if status == STATUS_OK:
                 hf_run = hf_run + 1 if high_frequency_growth(sum_x2, sum_h2, n, dt, we, cfg) else 0
