@@ -165,6 +165,8 @@ def tune(sock: socket.socket, timeout: float) -> None:
 #: message (tens of microseconds on a loaded machine; OpenSees's genericClient exchanges about
 #: seven messages a step); polling answers at once, at the cost of one busy core while a client is served.
 SPIN_SECONDS = 2e-3
+#: Polling yields the processor after this long [s]: a peer that answers within it is on another core.
+YIELD_AFTER_SECONDS = 1e-4
 
 
 class FrameReader:
@@ -201,8 +203,8 @@ class FrameReader:
                         raise ProtocolError(
                             f"client {state}: {what} not complete within {self.timeout:g} s ({got} of {want} bytes)"
                         ) from None
-                else:
-                    os.sched_yield()  # polling gives way to any process that can run, the peer included
+                elif waited > YIELD_AFTER_SECONDS:
+                    os.sched_yield()  # a slow peer may need this core: give way to any process that can run
                 continue
             except OSError as exc:
                 raise ProtocolError(f"connection failed while reading {what}: {exc.strerror or exc}") from None
