@@ -394,6 +394,8 @@ OTHER: list[tuple[list[str], str]] = [
     (["map", "alpha", "fe", "--alpha", "0:45:100000", "--fe", "2:3:100000"], "GiB of memory"),
     (["synth", "s.csv", "--duration", "1e5", "--rate", "1e6"], "GiB of memory, more than this machine's"),
     (["trace", "t.parquet", "--periods", "100000", "--fe", "0.5"], "GiB of memory, more than this machine's"),
+    (["continue", "alpha", "--from", "0", "--to", "1", "--max-points", "1000000000"], "pass --max-work"),
+    (["continue", "alpha", "--from", "0", "--to", "1", "--max-period", "1000000"], "pass --max-work"),
     (["site", "--port", "70000"], "70000 is not in the range"),
     (["site", "-B", "seed=-1"], "seed = -1"),
     (["site", "-o", "{blocker}/log.parquet"], "blocker"),

@@ -11,6 +11,8 @@ from ..errors import ConfigError
 from ..params import PARAM_SPECS
 from ._app import FINITE, LazyChoice, main
 from ._checks import FIGURE_SUFFIXES, check_output, model_sets
+from ._executor import apply_options, work_options
+from ._executor import max_work as work_limit
 from ._sweep import read_sweep_metadata
 from ._sweep_options import load_model_file
 
@@ -140,6 +142,7 @@ def _aliases(parameter: str) -> set[str]:
 @click.option(
     "--progress/--no-progress", default=None, help="Progress bar on stderr (default: when stderr is a terminal)."
 )
+@apply_options(work_options())
 def continue_command(
     parameter,
     start,
@@ -164,6 +167,8 @@ def continue_command(
     overlays,
     observable,
     progress,
+    max_work,
+    yes,
 ):
     """Continue periodic orbits in PARAMETER from --from to --to (both directions from the start).
 
@@ -222,6 +227,9 @@ def continue_command(
         max_period=max_period,
         newton_tol=newton_tol,
     )
+    from ..scan import check_work
+
+    check_work(config.work(), work_limit(max_work, yes))
     for sweep in overlays:  # refuse unreadable or other-parameter sweeps before the run, not after
         swept = read_sweep_metadata(sweep, "--overlay")["config"].get("parameter")
         if swept != parameter:

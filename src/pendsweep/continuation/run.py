@@ -48,6 +48,10 @@ from .shooting import PendulumShooting, semi_trivial_section
 CONTINUABLE = tuple(name for name in PARAM_SPECS if name not in ("M1", "C1", "M2", "C2"))
 
 
+#: RK4 systems a shooting evaluation integrates: the orbit and its four variational directions.
+VARIATIONAL_SYSTEMS = 5
+
+
 @dataclass(frozen=True)
 class ContinuationConfig:
     """A continuation run; stored in full with its result.
@@ -156,6 +160,23 @@ class ContinuationConfig:
             max_period=self.max_period,
             newton_tol=self.newton_tol,
         )
+
+    def work(self):
+        """Upper bound on the integration steps (:class:`pendsweep.scan.Work`) before the run starts.
+
+        Every point of both directions of every branch (period ``period``,
+        doubled up to ``max_period``) takes at most ``max_iterations`` corrector
+        evaluations, each a shooting over the branch's period with the
+        variational equations: five RK4 systems of Eq. (11)'s size.
+        """
+        from ..scan import Work
+
+        periods, k = 0, self.period
+        while k <= max(self.max_period, self.period):
+            periods += k
+            k *= 2
+        evaluations = 2 * self.max_points * self.settings().max_iterations
+        return Work(evaluations, periods * VARIATIONAL_SYSTEMS, float(self.problem().steps))
 
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
