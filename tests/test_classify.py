@@ -190,6 +190,7 @@ def test_batched_evidence_gives_the_labels_of_point_by_point_evidence():
 
     class PointByPoint:  # the same backend without its batched evidence
         batched = False  # the contract's declaration: no batched kernel, no evidence_many
+        restartable = True  # it can start from any state (the contract)
 
         def run_point(self, *args):
             return backend.run_point(*args)

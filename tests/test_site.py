@@ -526,5 +526,5 @@ def test_realtime_paces_to_the_wall_clock():
     assert site.join() == 0
     assert wall >= (n - 1) * DT  # never ahead of the simulated clock
     summary = site.server.sessions[-1]
-    assert summary.misses >= 0 and summary.steps == n
+    assert summary.steps == n
     assert math.isfinite(summary.quantile_us(0.5))

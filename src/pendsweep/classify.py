@@ -345,7 +345,7 @@ def classify_runs(
     undecided = [j for j, m in enumerate(motions) if m is None]
     if not undecided:
         return motions
-    if getattr(backend, "rig", ""):  # a remote rig cannot be re-run from a state: no evidence beyond the record
+    if not backend.restartable:  # it cannot be re-run from a state: no evidence beyond the record
         return [Motion("transient") if m is None else m for m in motions]
     if backend.batched:
         found = backend.evidence_many(

@@ -200,10 +200,11 @@ class SweepConfig:
         backend = make_backend(self.backend, **options)
         for v in (self.values[0], self.values[-1]):
             backend.validate(self.params_at(v))
-        if getattr(backend, "rig", ""):  # the protocol cannot put a remote specimen into a state
+        if not backend.restartable:  # e.g. a remote rig: the protocol cannot put a specimen into a state
             if self.mode != "fresh" or self.transient != "fixed":
                 raise ConfigError(
-                    f"a remote rig ({backend.rig}) starts every point from the site's initial state: "
+                    f"{self.backend} with these options starts every point from its own initial state (a remote "
+                    "rig: the site's): "
                     f"use --mode fresh with a fixed transient (got --mode {self.mode}, --transient {self.transient})"
                 )
         return backend
@@ -479,8 +480,8 @@ class SweepScan:
 
     def tasks(self, finished: Finished, n_jobs: int) -> tuple[list[Callable], int]:
         config = self.config
-        if getattr(self.backend, "rig", ""):
-            n_jobs = 1  # a site serves one controller at a time
+        if not self.backend.restartable:
+            n_jobs = 1  # its specimen serves one controller at a time
         if config.mode != "continue":
             return _independent_tasks(config, self.backend, finished.keys, n_jobs, self.task_points)
         resume = _resume_info(finished.rows, finished.states, config.rest_threshold)

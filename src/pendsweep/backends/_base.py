@@ -30,10 +30,15 @@ backend must:
    :meth:`pendsweep.backends.EmulatedBackend.evidence_many`); for the others
    the classifier re-simulates point by point with :meth:`run_point`.
 7. Never raise on a diverging point: report it through ``PointRun.status``.
+8. Say whether a run may start from any given state (``restartable``; default
+   True). A backend whose specimen lives elsewhere (a remote rig) is not:
+   sweeps then run fresh points one at a time, and the classifier judges
+   points by their records alone.
 
 :class:`BackendBase` supplies the defaults (a state whose first four
 entries are ``(y, ydot, theta, thetadot)``, the per-point fallback of
-:meth:`run_points`, steps from a ``dt`` field, options from the fields).
+:meth:`run_points`, steps from a ``dt`` field, options from the fields,
+``restartable``).
 """
 
 from __future__ import annotations
@@ -76,6 +81,9 @@ class Backend(Protocol):
     #: True when :meth:`run_points` is a vectorised kernel worth whole chunks of points
     #: (and ``evidence_many`` exists, module docstring item 6).
     batched: ClassVar[bool]
+
+    @property
+    def restartable(self) -> bool: ...
 
     @property
     def min_batch_points(self) -> int:
@@ -129,6 +137,15 @@ class BackendBase:
     """
 
     batched: ClassVar[bool] = False
+
+    @property
+    def restartable(self) -> bool:
+        """Whether a point can start from any given state (False: a physical specimen elsewhere owns the state).
+
+        A backend that is not restartable runs fresh points one at a time, and
+        the classifier cannot re-run a point for its evidence.
+        """
+        return True
 
     @property
     def min_batch_points(self) -> int:

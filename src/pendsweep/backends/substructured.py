@@ -247,6 +247,11 @@ class SubstructuredBackend(BackendBase):
                 )
 
     # -- contract -----------------------------------------------------------------
+    @property
+    def restartable(self) -> bool:
+        """A remote rig starts every run from the site's own initial state (one controller at a time)."""
+        return not self.rig
+
     def validate(self, params: ModelParams) -> None:
         if params.M1 <= 0 or params.C1 < 0:
             raise ConfigError(

@@ -72,7 +72,7 @@ class SiteLog:
         self.session_start = 0.0
         self._step = 0
 
-    def start_session(self, peer: str) -> None:
+    def start_session(self) -> None:
         self.session += 1
         self._step = 0
         self.session_start = time.perf_counter()

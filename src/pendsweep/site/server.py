@@ -188,7 +188,7 @@ def serve_session(conn: socket.socket, rig: SiteRig, log: SiteLog, timeout: floa
         peer = "unknown"
     summary = SessionSummary(peer)
     rig.reset()
-    log.start_session(peer)
+    log.start_session()
     start = time.perf_counter()
     pacer = _Pacer() if realtime else None
     gc_was_enabled = gc.isenabled()
