@@ -8,6 +8,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
+from pendsweep import columns
 from pendsweep.columns import column, has_duplicate_rows, read_parquet, repeated, sort_rows, table, to_numpy
 
 
@@ -53,8 +54,14 @@ def test_column_refuses_what_it_cannot_represent():
         to_numpy(pa.array([1.0, None]))
 
 
-def test_sort_and_duplicates_agree_with_pyarrow():
-    """sort_rows is pyarrow's stable sort_by (strings in code-point order); has_duplicate_rows its group_by count."""
+@pytest.mark.parametrize("python_rank_rows", [65536, 0], ids=["ranked-in-python", "dictionary-encoded"])
+def test_sort_and_duplicates_agree_with_pyarrow(monkeypatch, python_rank_rows):
+    """sort_rows is pyarrow's stable sort_by (strings in code-point order); has_duplicate_rows its group_by count.
+
+    Both ways of ranking strings (small columns in Python, long ones through
+    Arrow's dictionary encoding) are checked against pyarrow.
+    """
+    monkeypatch.setattr(columns, "PYTHON_RANK_ROWS", python_rank_rows)
     rng = np.random.default_rng(3)
     for trial in range(40):
         n = int(rng.integers(0, 60))

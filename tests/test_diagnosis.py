@@ -444,3 +444,35 @@ def test_real_free_swings_get_one_answer(tmp_path):
         assert best["status"] in ("rejected", "not judged") and best["reasons"]
     else:
         assert js["explained_share"] > 0.5
+
+
+@pytest.mark.parametrize("kind", ["free_decay", "substructured"])
+def test_the_work_estimate_bounds_the_replays_a_diagnosis_runs(kind, monkeypatch):
+    """diagnosis_work is an upper estimate of the replays, not a vacuous one (within 20 times)."""
+    from pendsweep.diagnose import replay as replay_module
+    from pendsweep.diagnose.fit import diagnosis_work
+
+    case = Case(kind, seed=SEED + 7, theta_init=1.0 if kind == "free_decay" else 0.3, duration=8.0)
+    rp = Replay(generate(case))
+    steps = []
+    simulate = replay_module.Replay.simulate
+
+    def counted(self, values, stop=None):
+        steps.append((self.n if stop is None else stop) * self.substeps)
+        return simulate(self, values, stop)
+
+    monkeypatch.setattr(replay_module.Replay, "simulate", counted)
+    work = diagnosis_work([rp])
+    diagnose(rp)
+    assert work.total / 20 < sum(steps) <= work.total, (sum(steps), work.describe())
+
+
+def test_diagnose_refuses_work_beyond_max_work_and_runs_with_yes(tmp_path):
+    record = tmp_path / "rec.parquet"
+    write_record(generate(Case("free_decay", seed=SEED + 8, theta_init=1.0, duration=4.0)), record)
+    refused = CliRunner().invoke(main, ["diagnose", str(record), "--max-work", "1e5"])
+    assert refused.exit_code == 2 and "this diagnosis needs about" in refused.output
+    assert "replays" in refused.output and "pass --max-work" in refused.output
+    accepted = CliRunner().invoke(main, ["diagnose", str(record), "--max-work", "1e5", "--yes"])
+    assert accepted.exit_code == 0, accepted.output
+    assert json.loads(accepted.output)["cause"] == "none"

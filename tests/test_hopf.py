@@ -192,7 +192,7 @@ def test_the_vectorised_closed_form_is_the_scalar_one_point_by_point():
         (1, ANALYTIC_CHUNK, "analytic"),
     ]
     for j, first, _ in units:
-        rows = hopf_analytic_rows(config, j, first)
+        rows = hopf_analytic_rows(config, j, first).to_pandas()
         points = rows["point"].to_numpy()
         assert points[0] == first and np.all(np.diff(points) == 1)
         for k in (0, len(rows) // 2, len(rows) - 1):

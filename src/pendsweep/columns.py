@@ -47,6 +47,12 @@ def table(columns: dict[str, np.ndarray | pa.Array]) -> pa.Table:
     return pa.Table.from_arrays([column(c) for c in columns.values()], names=list(columns))
 
 
+#: String columns up to this length are ranked in Python; longer ones through
+#: Arrow's dictionary encoding (which loads ``pyarrow.compute``, 25 ms, a cost a
+#: small sweep's start-up should not pay; a million rows take 10 ms instead of 0.4 s).
+PYTHON_RANK_ROWS = 65536
+
+
 def to_numpy(values: pa.Array | pa.ChunkedArray) -> np.ndarray:
     """A numeric or bool Arrow column (no nulls) as a new numpy array; a string column as sort ranks.
 
@@ -59,6 +65,11 @@ def to_numpy(values: pa.Array | pa.ChunkedArray) -> np.ndarray:
     if values.null_count:
         raise ValueError(f"column of {values.type} has {values.null_count} nulls")
     if pa.types.is_string(values.type) or pa.types.is_large_string(values.type):
+        if len(values) > PYTHON_RANK_ROWS:
+            encoded = values.dictionary_encode()
+            words = encoded.dictionary.to_pylist()
+            rank = np.argsort(np.argsort(np.array(words, dtype=object)))
+            return rank[to_numpy(encoded.indices)].astype(np.int64)
         texts = values.to_pylist()
         rank = {text: i for i, text in enumerate(sorted(set(texts)))}
         return np.fromiter((rank[text] for text in texts), np.int64, len(texts))

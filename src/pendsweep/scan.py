@@ -104,8 +104,10 @@ class Work:
     def total(self) -> float:
         return self.units * self.periods * self.steps + self.other
 
-    def describe(self) -> str:
-        text = f"{self.total:.3g} integration steps ({self.units} runs x {self.periods:.4g} periods x {self.steps:.4g} steps"
+    def describe(self, runs: str = "runs") -> str:
+        """The estimate in words, its runs called ``runs``; "x 1 periods" left out for runs that are not periodic."""
+        periods = f" x {self.periods:.4g} periods" if self.periods != 1 else ""
+        text = f"{self.total:.3g} integration steps ({self.units} {runs}{periods} x {self.steps:.4g} steps"
         return text + (f" + {self.other:.3g} other)" if self.other else ")")
 
 
@@ -117,22 +119,23 @@ def machine_memory() -> float:
         return math.inf
 
 
-def check_work(work: Work, max_work: float | None) -> None:
+def check_work(work: Work, max_work: float | None, what: str = "scan", runs: str = "runs") -> None:
     """Refuse (``ConfigError``, exit 2) a scan whose estimate exceeds ``max_work`` or the machine's memory.
 
-    None lifts both limits (``--yes``).
+    None lifts both limits (``--yes``). ``what`` and ``runs`` name the job and
+    its runs in the message (e.g. ``"diagnosis"``, ``"replays"``).
     """
     if max_work is None:
         return
     memory = machine_memory()
     if work.result_bytes > memory:
         raise ConfigError(
-            f"this scan's results need about {work.result_bytes / 2**30:.3g} GiB of memory ({work.units} runs), "
+            f"this {what}'s results need about {work.result_bytes / 2**30:.3g} GiB of memory ({work.units} {runs}), "
             f"more than this machine's {memory / 2**30:.3g} GiB; make it smaller (or pass --yes to try anyway)"
         )
     if work.total > max_work:
         raise ConfigError(
-            f"this scan needs about {work.describe()}, more than the limit of {max_work:.3g}; "
+            f"this {what} needs about {work.describe(runs)}, more than the limit of {max_work:.3g}; "
             f"pass --max-work {_round_up(work.total)} (or --yes) to run it"
         )
 
@@ -279,11 +282,13 @@ def _run(scan: Scan, store: ResultStore | None, finished: Finished, n_jobs, prog
             if store is not None:
                 store.add(rows, unit.key, unit.state)
             bar.update(1)
+    except BaseException:
+        if store is not None:
+            store.flush()  # what finished stays for a resume
+        raise
     finally:
         bar.close()
-        if store is not None:
-            store.flush()
-    if store is not None:
+    if store is not None:  # finalize writes what is still buffered, straight from memory
         return store.finalize()
     return concat_rows(tables)
 

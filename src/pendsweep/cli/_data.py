@@ -11,6 +11,8 @@ import click
 from ..errors import ConfigError
 from ._app import ANGLE, FINITE, PATH, RATE, SEED, FiniteFloat, main
 from ._checks import check_input, check_memory, check_output, check_output_dir
+from ._executor import apply_options, work_options
+from ._executor import max_work as work_limit
 
 
 def _pairs(items: tuple[str, ...], what: str) -> dict[str, float]:
@@ -66,7 +68,8 @@ def _pairs(items: tuple[str, ...], what: str) -> dict[str, float]:
     type=PATH,
     help="JSON of ModelParams fields replacing the records' nominal model (e.g. from fit-damping --params-out).",
 )
-def diagnose(data, json_out, report_dir, horizon, folds, causes, jobs, model_file):
+@apply_options(work_options())
+def diagnose(data, json_out, report_dir, horizon, folds, causes, jobs, model_file, max_work, yes):
     """Compare measured records with their nominal model and name the missing effect.
 
     DATA is one or more format-v1 records (.csv with a .json sidecar, or
@@ -78,7 +81,9 @@ def diagnose(data, json_out, report_dir, horizon, folds, causes, jobs, model_fil
     from ..data import read_record
     from ..diagnose import Replay
     from ..diagnose import diagnose as run
+    from ..diagnose.fit import diagnosis_work
     from ..diagnose.report import write_report
+    from ..scan import check_work
     from ._sweep_options import load_model_file
 
     for path in data:
@@ -90,7 +95,9 @@ def diagnose(data, json_out, report_dir, horizon, folds, causes, jobs, model_fil
     if model is not None:
         for record in records:
             record.params = record.params.replace(**model)
-    diag = run([Replay(r, horizon, folds) for r in records], list(causes) or None, n_jobs=jobs)
+    replays = [Replay(r, horizon, folds) for r in records]
+    check_work(diagnosis_work(replays, list(causes) or None), work_limit(max_work, yes), "diagnosis", "replays")
+    diag = run(replays, list(causes) or None, n_jobs=jobs)
     text = json.dumps(diag.to_json(), indent=1)
     if json_out:
         json_out.parent.mkdir(parents=True, exist_ok=True)

@@ -37,7 +37,7 @@ def parse_values(text: str, what: str) -> tuple[float, ...]:
         raise ConfigError(f"{what} = {text!r}: {accepted}") from None
     if not 1 <= n <= MAX_POINTS:
         raise ConfigError(f"{what} = {text!r}: N = {n} must be between 1 and {MAX_POINTS}")
-    return tuple(float(v) for v in value_range(*bounds, points=n))
+    return tuple(value_range(*bounds, points=n).tolist())
 
 
 #: Rows printed at most; a longer scan prints rows evenly spaced through it (the file holds all).
