@@ -497,7 +497,7 @@ OTHER: list[tuple[list[str], str]] = [
     (["diagnose", "{rec_good}", "{rec_binary}"], "is not a text (UTF-8) file"),
     (["diagnose", "{rec_good}", "--horizon", "0"], "'0' s is outside"),
     (["diagnose", "{rec_good}", "-j", "0"], "0 is not in the range"),
-    (["diagnose", "{rec_good}", "--max-work", "0"], "0.0<x"),
+    (["diagnose", "{rec_good}", "--max-work", "0"], "0.0 is not in the range x>0"),
     (["hopf", "--what", "1:2:1000", "--max-work", "10"], "pass --max-work"),
     (["diagnose", "{rec_good}", "--model", "{model_notjson}"], "model_notjson.json"),
     (["diagnose", "{rec_good}", "--model", "{model_str}"], "alpha = 'five'"),
