@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 from matplotlib.figure import Figure
+from matplotlib.legend import Legend
 from matplotlib.image import AxesImage
 
 from pendsweep.cli import main
@@ -54,7 +55,8 @@ def covered(fig: Figure) -> list[str]:
     fig.canvas.draw()
     points = _data_points(fig)
     found = []
-    legends = [ax.get_legend() for ax in fig.axes if ax.get_legend() is not None] + list(fig.legends)
+    # Every legend, also those kept with add_artist (a second legend, e.g. the motion classes).
+    legends = [c for ax in fig.axes for c in ax.get_children() if isinstance(c, Legend)] + list(fig.legends)
     for legend in legends:
         box = legend.get_window_extent().padded(-1)
         inside = (points[:, 0] > box.x0) & (points[:, 0] < box.x1) & (points[:, 1] > box.y0) & (points[:, 1] < box.y1)
@@ -80,6 +82,8 @@ def inspected(monkeypatch):
 
 COMMANDS = {
     "sweep --plot": ["alpha", "--from", "30", "--to", "34", "--step", "1", "--mode", "fresh", "--plot", "a.png", "-o", "a.parquet"],
+    "sweep --plot (Fig. 11(a), both directions)": ["alpha", "--from", "0", "--to", "45", "--direction", "both", "--plot", "w.png", "-o", "w.parquet"],
+    "sweep --plot (fe)": ["fe", "--from", "2.0", "--to", "3.0", "--step", "0.02", "--plot", "e.png", "-o", "e.parquet"],
     "basins --plot (one value)": ["basins", "--alpha", "40", "--grid", "10x10", "--max-periods", "60", "--plot", "b.png", "-o", "b.parquet"],
     "basins --plot (a range)": ["basins", "alpha", "--from", "38", "--to", "40", "--step", "1", "--samples", "30", "--max-periods", "60", "--plot", "c.png", "-o", "c.parquet"],
     "map --plot": ["map", "alpha", "fe", "--alpha", "10:30:4", "--fe", "2.2:2.6:4", "--max-periods", "60", "--plot", "m.png", "-o", "m.parquet"],
@@ -88,6 +92,7 @@ COMMANDS = {
     "sync": ["{trace}", "sync", "t.parquet", "-o", "s.png"],
     "fit-damping --plot": ["{record}", "fit-damping", "r.csv", "--plot", "f.png"],
     "diagnose --report": ["{record}", "diagnose", "r.csv", "--report", "rep"],
+    "diagnose --report (part by part)": ["{substructured}", "diagnose", "s.parquet", "--report", "rep2"],
     "figures (quick)": ["figures", "fig8", "fig9", "fig11a", "fig10a", "fig5_margin", "fig6_chart", "fig9_hybrid",
                         "fig12_sync", "free_swing_damping", "fig11b", "fig10b", "coexistence", "fig11_hybrid",
                         "stability_validation", "basin40", "basin_fractions", "map_alpha_fe", "fig11_continuation",
@@ -104,6 +109,7 @@ def test_no_legend_covers_data(name, inspected, tmp_path, monkeypatch):
         "{sweep}": COMMANDS["sweep --plot"],
         "{trace}": ["trace", "t.parquet", "--periods", "6", "--transient-periods", "20"],
         "{record}": ["synth", "r.csv", "--duration", "15", "--effect", "viscous_damping=2e-4"],
+        "{substructured}": ["synth", "s.parquet", "--kind", "substructured", "--duration", "6"],
     }
     for marker, make in inputs.items():
         if marker in args:

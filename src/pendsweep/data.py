@@ -33,17 +33,46 @@ from .params import ModelParams
 from .results import atomic_write_table, read_metadata, with_metadata
 
 FORMAT_VERSION = 1
-KINDS = ("free_decay", "forced", "substructured")
-#: Required columns per kind.
+KINDS = ("free_decay", "forced", "substructured", "rig")
+#: Required columns per kind. ``rig``: the physical substructure under command without the
+#: numerical model's force (an experimental site's log).
 REQUIRED = {
     "free_decay": ("t", "theta"),
     "forced": ("t", "theta", "y", "Fe"),
     "substructured": ("t", "theta", "y", "Fe", "y_cmd"),
+    "rig": ("t", "theta", "y", "y_cmd", "Fs"),
 }
-#: Every column the format knows, with its unit.
-UNITS = {"t": "s", "theta": "rad", "y": "m", "Fe": "N", "y_cmd": "m", "Fs": "N"}
+#: Every column the format knows, with its SI unit.
+UNITS = {
+    "t": "s", "theta": "rad", "y": "m", "Fe": "N", "y_cmd": "m", "Fs": "N",
+    "y_star": "m", "F_fb": "N", "ydot": "m/s", "yddot": "m/s^2",
+}  # fmt: skip
+#: What each column measures (written into a record's metadata with its unit).
+DESCRIPTIONS = {
+    "t": "sample time",
+    "theta": "pendulum angle from the hanging equilibrium (encoder)",
+    "y": "oscillator / platform displacement (substructured: the actuator's LVDT)",
+    "Fe": "external force on the (emulated) oscillator",
+    "y_cmd": "actuator command (the controller's output)",
+    "Fs": "interface force (load cell)",
+    "y_star": "numerical model's displacement y* before any forward prediction",
+    "F_fb": "force fed back to the numerical model (after any filter)",
+    "ydot": "measured platform velocity",
+    "yddot": "measured platform acceleration (accelerometer)",
+}
+#: Units a record may declare per column (``columns.NAME.unit``), as factors to the SI unit.
+UNIT_FACTORS = {
+    "s": {"s": 1.0, "ms": 1e-3},
+    "rad": {"rad": 1.0, "deg": math.pi / 180.0, "mrad": 1e-3},
+    "m": {"m": 1.0, "mm": 1e-3, "um": 1e-6, "cm": 1e-2, "in": 0.0254},
+    "N": {"N": 1.0, "kN": 1e3, "lbf": 4.4482216152605},
+    "m/s": {"m/s": 1.0, "mm/s": 1e-3},
+    "m/s^2": {"m/s^2": 1.0, "mm/s^2": 1e-3, "g": 9.80665},
+}
 #: Metadata params that are not ModelParams fields.
 EXTRA_PARAMS = ("tau",)
+#: Parquet files of this package that are records under other column names (:mod:`pendsweep.logs`).
+LOG_KINDS = ("site-log", "trace")
 #: Relative tolerance on the sample step for a "uniformly sampled" record.
 UNIFORM_RTOL = 1e-3
 
@@ -66,6 +95,12 @@ class Record:
         Optional ``{"alpha": N, "fe": Hz}``.
     name : str
         Where the record came from.
+    actuator : dict
+        Optional nominal actuator model (``{"model": "second_order", "tau": s,
+        "rate": rad/s, "zeta": -}``, see :func:`pendsweep.diagnose.transfer.nominal_actuator`);
+        empty: a pure delay of ``tau``.
+    sensors : dict
+        Optional description of each column's sensor (free text), kept in the metadata.
     """
 
     data: pd.DataFrame
@@ -74,6 +109,8 @@ class Record:
     tau: float = 0.0
     forcing: dict[str, float] = field(default_factory=dict)
     name: str = "record"
+    actuator: dict[str, Any] = field(default_factory=dict)
+    sensors: dict[str, str] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         validate(self.data, self.kind, self.name)
@@ -93,11 +130,22 @@ class Record:
 
     def metadata(self) -> dict[str, Any]:
         params = self.params.to_dict()
-        if self.kind == "substructured":
+        if self.kind in ("substructured", "rig"):
             params["tau"] = self.tau
         meta: dict[str, Any] = {"format": FORMAT_VERSION, "kind": self.kind, "params": params}
         if self.forcing:
             meta["forcing"] = dict(self.forcing)
+        if self.actuator:
+            meta["actuator"] = dict(self.actuator)
+        meta["columns"] = {
+            c: {
+                "unit": UNITS[c],
+                "description": DESCRIPTIONS[c],
+                **({"sensor": self.sensors[c]} if c in self.sensors else {}),
+            }
+            for c in UNITS
+            if c in self.data.columns
+        }
         return meta
 
 
@@ -139,6 +187,62 @@ def validate(data: pd.DataFrame, kind: str, name: str = "record") -> None:
             f"{name}: time is not uniformly sampled: step {step[i]:g} s at row {i + 1} differs from the "
             f"mean step {mean:g} s by more than {UNIFORM_RTOL:g} of it"
         )
+
+
+#: Actuator models a record's metadata may name, with their parameters.
+ACTUATOR_MODELS = {
+    "delay": ("tau", "gain"),
+    "first_order": ("tau", "gain", "rate"),
+    "second_order": ("tau", "gain", "rate", "zeta"),
+}
+
+
+def _parse_actuator(table: Any, name: str) -> dict[str, Any]:
+    """The metadata's ``actuator`` table, checked: a known model and finite numbers >= 0 for its parameters."""
+    if table is None:
+        return {}
+    if not isinstance(table, dict):
+        raise ConfigError(f"{name}: metadata 'actuator' must be a JSON object, got {table!r}")
+    model = table.get("model", "delay")
+    if model not in ACTUATOR_MODELS:
+        raise ConfigError(f"{name}: actuator model {model!r} is unknown; accepted: {', '.join(ACTUATOR_MODELS)}")
+    out: dict[str, Any] = {"model": model}
+    for k, v in table.items():
+        if k == "model":
+            continue
+        if k not in ACTUATOR_MODELS[model]:
+            raise ConfigError(
+                f"{name}: actuator.{k} does not belong to model {model!r} ({', '.join(ACTUATOR_MODELS[model])})"
+            )
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v >= 0):
+            raise ConfigError(f"{name}: actuator.{k} = {v!r} must be a finite number >= 0")
+        out[k] = float(v)
+    if "rate" in ACTUATOR_MODELS[model] and not out.get("rate", 0.0) > 0:
+        raise ConfigError(f"{name}: actuator model {model!r} needs rate > 0 (1/T [1/s] or ws [rad/s])")
+    return out
+
+
+def _parse_columns(table: Any, data: pd.DataFrame, name: str) -> dict[str, str]:
+    """Convert columns declared in other units to SI (``columns.NAME.unit``); return the sensor descriptions."""
+    if table is None:
+        return {}
+    if not isinstance(table, dict):
+        raise ConfigError(f"{name}: metadata 'columns' must be a JSON object, got {table!r}")
+    sensors = {}
+    for col, spec in table.items():
+        if col not in UNITS:
+            continue  # a column the format does not use: kept in the file, ignored here
+        if not isinstance(spec, dict):
+            raise ConfigError(f"{name}: metadata columns.{col} must be a JSON object with 'unit', got {spec!r}")
+        unit = spec.get("unit", UNITS[col])
+        factors = UNIT_FACTORS[UNITS[col]]
+        if unit not in factors:
+            raise ConfigError(f"{name}: column {col!r} in unit {unit!r}; accepted: {', '.join(factors)}")
+        if factors[unit] != 1.0 and col in data.columns:
+            data[col] = data[col].to_numpy(dtype=np.float64) * factors[unit]
+        if isinstance(spec.get("sensor"), str):
+            sensors[col] = spec["sensor"]
+    return sensors
 
 
 def _parse_metadata(meta: Any, name: str) -> tuple[str, ModelParams, float, dict[str, float]]:
@@ -186,12 +290,17 @@ def _mismatched_csv(path: Path) -> None:
                 )
 
 
-def read_record(path: str | Path) -> Record:
+def read_record(path: str | Path, session: int | None = None) -> Record:
     """Read a format-v1 record (``.csv`` + ``.json`` sidecar, or ``.parquet``).
 
     Files in the raw free-swing format (first line ``trigger_start_deg, ...``)
-    are read with :func:`read_free_swing`. Raises :class:`ConfigError` for an
-    invalid record and :class:`ResultsError` for an unreadable file.
+    are read with :func:`read_free_swing`; a ``pendsweep site`` log or a
+    substructured ``pendsweep trace`` as the record they hold
+    (:mod:`pendsweep.logs`; ``session`` picks a site log's client, default
+    the last). Columns declared in other units (metadata ``columns.NAME.unit``,
+    e.g. ``mm``, ``deg``, ``kN``) are converted to SI. Raises
+    :class:`ConfigError` for an invalid record and :class:`ResultsError` for
+    an unreadable file.
     """
     path = Path(path)
     if not path.is_file():
@@ -231,9 +340,16 @@ def read_record(path: str | Path) -> Record:
             data = pd.read_csv(path)
         except (pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
             raise ConfigError(f"cannot parse {name!r} as CSV: {exc}") from None
+    if isinstance(meta, dict) and meta.get("kind") in LOG_KINDS:
+        from .logs import record_of_log  # a test's own log (site log, trace): its columns renamed
+
+        return record_of_log(data, meta, name, session)
     kind, params, tau, forcing = _parse_metadata(meta, name)
     validate(data, kind, name)  # before the float cast, so that text in a column is named, not a traceback
-    return Record(data.astype({c: np.float64 for c in data.columns if c in UNITS}), kind, params, tau, forcing, name)
+    data = data.astype({c: np.float64 for c in data.columns if c in UNITS})
+    sensors = _parse_columns(meta.get("columns"), data, name)
+    actuator = _parse_actuator(meta.get("actuator"), name)
+    return Record(data, kind, params, tau, forcing, name, actuator, sensors)
 
 
 def write_record(record: Record, path: str | Path) -> list[Path]:

@@ -79,7 +79,7 @@ from .kernels._layout import (
 from .kernels._mathieu import mathieu_monodromy
 from .params import ENCODER_RESOLUTION, ModelParams, check_value
 from .results import run_metadata
-from .scan import DEFAULT_MAX_WORK, Finished, UnitResult, Work, run_scan, sample_indices
+from .scan import DEFAULT_MAX_WORK, RESULT_ROW_BYTES, Finished, UnitResult, Work, run_scan, sample_indices
 from .status import Status
 
 METHODS = ("analytic", "floquet", "simulate")
@@ -427,6 +427,9 @@ class HopfConfig:
         bad = [m for m in self.methods if m not in METHODS]
         if bad:
             raise ConfigError(f"unknown Hopf method(s) {', '.join(bad)}; choose from {', '.join(METHODS)}")
+        twice = sorted({m for m in self.methods if self.methods.count(m) > 1})
+        if twice:
+            raise ConfigError(f"--method lists {', '.join(twice)} twice; give each method once")
         for name, lo in (("periods", 2), ("settle_periods", 0), ("floquet_steps", 8)):
             v = getattr(self, name)
             if int(v) != v or v < lo:
@@ -496,15 +499,26 @@ def hopf_analytic_rows(config: HopfConfig, mass_point: int, first: int) -> pa.Ta
     omega_hat = config.omega_hat_array[points]
     fe = omega_hat * base.omega_p / math.pi  # fe_for_omega_hat, for every point at once
     n = points.size
+    with np.errstate(over="ignore", invalid="ignore"):  # an overflow is a row status, not a warning
+        alpha_h = np.asarray(alpha_hopf_analytic(base, 2.0 * math.pi * fe), dtype=np.float64)
     values: dict[str, Any] = {name: np.full(n, math.nan) for name in COLUMNS}
     values.update(
         omega_hat=omega_hat, fe=fe, M=np.full(n, base.M), method=repeated("analytic", n),
-        alpha_H=alpha_hopf_analytic(base, 2.0 * math.pi * fe), status=repeated("ok", n),
+        alpha_H=alpha_h, status=_analytic_status(alpha_h),
         runs=np.ones(n, dtype=np.int64), backend=repeated("", n),
     )  # fmt: skip
     return table(
         {"mass_point": np.full(n, mass_point, dtype=np.int64), "point": points} | {c: values[c] for c in COLUMNS}
     )
+
+
+def _analytic_status(alpha_h: np.ndarray):
+    """``ok`` rows, and ``diverged`` where Eq. (12) overflowed (extreme omega_hat or M): an Arrow string column."""
+    import pyarrow as pa
+
+    if np.all(np.isfinite(alpha_h)):
+        return repeated("ok", alpha_h.size)
+    return pa.array(np.where(np.isfinite(alpha_h), "ok", Status.DIVERGED.value).tolist(), pa.string())
 
 
 def hopf_point(config: HopfConfig, mass_point: int, point: int, method: str, backend=None) -> pd.DataFrame:
@@ -626,7 +640,12 @@ class HopfScan:
         steps = float(np.mean([self.backend.steps_per_period(q) for q in sample]))
         simulate = n_points * runs if "simulate" in config.methods else 0
         floquet = n_points * FLOQUET_EVALUATIONS * config.floquet_steps if "floquet" in config.methods else 0
-        return Work(simulate, config.settle_periods + config.periods, steps, other=floquet)
+        # Every row is held when the scan is gathered and ordered (Arrow, then the frame): the memory
+        # check refuses a closed-form scan of 10^8 rows before it starts.
+        rows = n_points * len(config.methods)
+        return Work(
+            simulate, config.settle_periods + config.periods, steps, other=floquet, result_bytes=rows * RESULT_ROW_BYTES
+        )
 
     def tasks(self, finished: Finished, n_jobs: int) -> tuple[list[Callable], int]:
         """Analytic and Floquet rows one task each; simulate rows of a batched backend in chunks.

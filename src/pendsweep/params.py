@@ -86,8 +86,9 @@ _NONNEG = dict(lower=0.0, lower_inclusive=True)
 
 #: Units, ranges and meanings of every parameter a sweep may step.
 PARAM_SPECS: dict[str, ParamSpec] = {
-    "m": ParamSpec("kg", **_POS, doc="pendulum mass"),
-    "l": ParamSpec("m", **_POS, doc="pendulum length"),
+    # Lengths and masses far outside any rig (1e-300 m) overflow the formulas (l^2 = 0): refused.
+    "m": ParamSpec("kg", lower=1e-9, upper=1e6, doc="pendulum mass"),
+    "l": ParamSpec("m", lower=1e-6, upper=1e3, doc="pendulum length"),
     "b1": ParamSpec("kg m^2/s^2", **_NONNEG, doc="pendulum Coulomb friction"),
     "b2": ParamSpec("kg m^2/s", **_NONNEG, doc="pendulum viscous damping"),
     "b3": ParamSpec("kg m^2", **_NONNEG, doc="pendulum quadratic (air) drag"),

@@ -104,16 +104,17 @@ def draw_bifurcation(
         if len(bad):
             top = np.pi if observable.startswith("theta") else ax.get_ylim()[1]
             ax.scatter(bad, np.full(len(bad), top), color="red", marker="x", s=20, label="diverged/unstable")
-    if all("motion" in df for df, _ in results):
-        draw_motion_bands(ax, results, parameter)
+    strips = draw_motion_bands(ax, results, parameter) if all("motion" in df for df, _ in results) else 0
     spec = PARAM_SPECS[parameter]
     ax.set_xlabel(f"{parameter} [{spec.unit}]  ({spec.doc})")
     ax.set_ylabel(OBSERVABLES[observable])
     if observable.startswith("theta") and observable != "theta_absmax":
-        ax.set_ylim(-np.pi, np.pi)
+        # Room under -pi for the class strips (each 3 % of the axes' height), so none covers a point.
+        share = 0.045 + 0.03 * max(strips - 1, 0) if strips else 0.0
+        ax.set_ylim(-np.pi - 2 * np.pi * share / (1 - share), np.pi)
         ax.set_yticks([-np.pi, -np.pi / 2, 0, np.pi / 2, np.pi], [r"$-\pi$", r"$-\pi/2$", "0", r"$\pi/2$", r"$\pi$"])
     ax.grid(alpha=0.3)
-    ax.legend(loc="upper left", fontsize=8, markerscale=2)
+    legend_right(ax, fontsize=8, markerscale=2)
 
 
 def plot_files(
@@ -144,7 +145,7 @@ def plot_files(
         )
     ax.set_title(title, fontsize=9)
     output.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(output, dpi=150)
+    fig.savefig(output, dpi=150, bbox_inches="tight")  # the legends sit right of the axes
     return output
 
 
@@ -171,8 +172,8 @@ def point_motions(df: pd.DataFrame, branches: pd.Series, parameter: str) -> dict
     return out
 
 
-def draw_motion_bands(ax: Axes, results, parameter: str) -> None:
-    """Shade the motion classes (``pendsweep.classify``) behind a bifurcation diagram.
+def draw_motion_bands(ax: Axes, results, parameter: str) -> int:
+    """Shade the motion classes (``pendsweep.classify``) behind a bifurcation diagram; return the strips drawn.
 
     The first branch (continue up, else whatever comes first) shades the full
     height, with the class written in each band; every branch also gets a
@@ -220,4 +221,9 @@ def draw_motion_bands(ax: Axes, results, parameter: str) -> None:
             start = k
         ax.text(edges[-1], 0.022 + 0.03 * row, f" {branch}", transform=transform, fontsize=6, va="center")
     handles = [Patch(color=MOTION_COLOURS[f], label=f) for f in MOTION_COLOURS if f in families]
-    ax.add_artist(ax.legend(handles=handles, loc="upper right", fontsize=6, title="motion", title_fontsize=6))
+    # Outside the axes, right and below the branches' legend: inside, it covered points (issue 24).
+    legend = ax.legend(
+        handles=handles, loc="lower left", bbox_to_anchor=(1.01, 0.0), fontsize=6, title="motion", title_fontsize=6
+    )
+    ax.add_artist(legend)
+    return len(names)

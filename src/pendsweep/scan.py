@@ -130,7 +130,9 @@ def check_work(work: Work, max_work: float | None, what: str = "scan", runs: str
     memory = machine_memory()
     if work.result_bytes > memory:
         raise ConfigError(
-            f"this {what}'s results need about {work.result_bytes / 2**30:.3g} GiB of memory ({work.units} {runs}), "
+            f"this {what}'s results need about {work.result_bytes / 2**30:.3g} GiB of memory"
+            + (f" ({work.units} {runs})" if work.units else "")
+            + ", "
             f"more than this machine's {memory / 2**30:.3g} GiB; make it smaller (or pass --yes to try anyway)"
         )
     if work.total > max_work:

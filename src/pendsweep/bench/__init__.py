@@ -70,6 +70,7 @@ from . import (  # noqa: E402  (registers the benchmarks; needs the registry abo
     gpu,  # noqa: E402,F401  (the CUDA kernel; skipped without a GPU)
     hopf,  # noqa: E402,F401  (Hopf-boundary scans)
     measured,  # noqa: E402,F401  (registers benchmarks)
+    rigs,  # noqa: E402,F401  (diagnosis of servo-rig records part by part, issue 22)
     site,  # noqa: E402,F401  (hybrid tests: OpenSees against pendsweep site and a naive site)
     substructured,  # noqa: E402,F401  (registers benchmarks)
     throughput,  # noqa: E402,F401  (batched kernel against its peers)

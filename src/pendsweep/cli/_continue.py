@@ -22,6 +22,13 @@ def _aliases(parameter: str) -> set[str]:
     return {parameter, f"{parameter}1"} if parameter in ("M", "C") else {parameter}
 
 
+def _deprecated_json(value: Path | None) -> Path | None:
+    """``--json FILE``, the old name of ``-o/--output``: still accepted, with a warning naming both."""
+    if value is not None:
+        click.echo("Warning: --json is deprecated; use -o/--output", err=True)
+    return value
+
+
 @main.command("continue")
 @click.argument("parameter", type=LazyChoice(".continuation.run", "CONTINUABLE"))
 @click.option(
@@ -116,7 +123,7 @@ def _aliases(parameter: str) -> set[str]:
     type=click.Path(dir_okay=False, path_type=Path),
     default=None,
     hidden=True,
-    deprecated="use -o/--output",
+    callback=lambda ctx, param, value: _deprecated_json(value),
 )
 @click.option(
     "--plot",

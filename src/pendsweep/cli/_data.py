@@ -68,20 +68,36 @@ def _pairs(items: tuple[str, ...], what: str) -> dict[str, float]:
     type=PATH,
     help="JSON of ModelParams fields replacing the records' nominal model (e.g. from fit-damping --params-out).",
 )
+@click.option(
+    "--method",
+    type=click.Choice(["parts", "closed-loop"]),
+    default="parts",
+    show_default=True,
+    help="Substructured records: identify the transfer system and replay the physical substructure and the "
+    "numerical model each on its own (parts), or replay the whole loop with the actuator as a pure delay (closed-loop).",
+)
+@click.option(
+    "--session",
+    type=click.IntRange(0),
+    default=None,
+    help="Client session of a `pendsweep site` log to diagnose (default: the last).",
+)
 @apply_options(work_options())
-def diagnose(data, json_out, report_dir, horizon, folds, causes, jobs, model_file, max_work, yes):
+def diagnose(data, json_out, report_dir, horizon, folds, causes, jobs, model_file, method, session, max_work, yes):
     """Compare measured records with their nominal model and name the missing effect.
 
     DATA is one or more format-v1 records (.csv with a .json sidecar, or
-    .parquet) or raw free-swing .txt files. Several records are taken as one
+    .parquet), raw free-swing .txt files, `pendsweep site` logs or
+    substructured `pendsweep trace` files. Several records are taken as one
     rig: physical parameters are fitted jointly (initial states and
     measurement-chain parameters per record) and validated by leave-one-record-out
-    prediction. Prints the verdict JSON.
+    prediction. Substructured records and site logs are diagnosed part by part:
+    transfer system (actuator, load cell, encoder), physical substructure and
+    numerical model (docs/measured-data.md). Prints the verdict JSON.
     """
     from ..data import read_record
-    from ..diagnose import Replay
-    from ..diagnose import diagnose as run
-    from ..diagnose.fit import diagnosis_work
+    from ..diagnose.chain import PartsDiagnosis, diagnose_records, diagnosis_work_of
+    from ..diagnose.parts_report import write_parts_report
     from ..diagnose.report import write_report
     from ..scan import check_work
     from ._sweep_options import load_model_file
@@ -91,19 +107,22 @@ def diagnose(data, json_out, report_dir, horizon, folds, causes, jobs, model_fil
     check_output(json_out, "--json", (".json",))
     check_output_dir(report_dir, "--report")
     model = load_model_file(model_file) if model_file is not None else None
-    records = [read_record(p) for p in data]
+    records = [read_record(p, session) for p in data]
     if model is not None:
         for record in records:
             record.params = record.params.replace(**model)
-    replays = [Replay(r, horizon, folds) for r in records]
-    check_work(diagnosis_work(replays, list(causes) or None), work_limit(max_work, yes), "diagnosis", "replays")
-    diag = run(replays, list(causes) or None, n_jobs=jobs)
+    wanted = list(causes) or None
+    check_work(diagnosis_work_of(records, wanted, method), work_limit(max_work, yes), "diagnosis", "replays")
+    diag = diagnose_records(records, wanted, jobs, horizon, folds, method)
     text = json.dumps(diag.to_json(), indent=1)
     if json_out:
         json_out.parent.mkdir(parents=True, exist_ok=True)
         json_out.write_text(text + "\n")
     if report_dir:
-        write_report(diag, report_dir, ", ".join(map(str, data)))
+        if isinstance(diag, PartsDiagnosis):
+            write_parts_report(diag, report_dir, ", ".join(map(str, data)))
+        else:
+            write_report(diag, report_dir, ", ".join(map(str, data)))
     click.echo(text)
 
 

@@ -36,7 +36,7 @@ def work_options(default: float = DEFAULT_MAX_WORK) -> list[Callable]:
     return [
         click.option(
             "--max-work",
-            type=click.FloatRange(min=0, min_open=True),
+            type=FiniteFloat(1.0, 1e30, "steps"),
             default=default,
             show_default=True,
             metavar="STEPS",

@@ -42,8 +42,10 @@ class Effect:
     meaning: str
 
 
-_ALL = ("free_decay", "forced", "substructured")
-_OSC = ("forced", "substructured")
+_ALL = ("free_decay", "forced", "substructured", "physical")
+_OSC = ("forced", "substructured", "numerical")
+#: The physical substructure of a substructured test, replayed on its own (:mod:`.parts`).
+_RIG = ("substructured", "physical")
 _INF = math.inf
 
 EFFECTS: dict[str, Effect] = {
@@ -69,12 +71,39 @@ EFFECTS: dict[str, Effect] = {
         Effect("spring_hardening", "k3", _OSC, 1e6, -_INF, _INF, "N/m^3", "restoring force K y + k3 y^3"),
         Effect("forcing_gain", "gain", _OSC, 1.0, 1e-3, _INF, "-", "applied force = gain x recorded Fe"),
         Effect("actuator_delay", "tau", ("substructured",), 0.01, 0.0, _INF, "s", "x(t) = y_cmd(t - tau)"),
-        Effect("platform_mass", "M2", ("substructured",), 0.9, 0.0, _INF, "kg", "platform mass"),
-        Effect("platform_damping", "C2", ("substructured",), 10.0, 0.0, _INF, "kg/s", "platform damping"),
-        Effect(
-            "force_sensor_gain", "gain_Fs", ("substructured",), 1.0, 1e-3, _INF, "-", "measured Fs = gain_Fs x true Fs"
-        ),
+        Effect("platform_mass", "M2", _RIG, 0.9, 0.0, _INF, "kg", "platform mass"),
+        Effect("platform_damping", "C2", _RIG, 10.0, 0.0, _INF, "kg/s", "platform damping"),
+        Effect("force_sensor_gain", "gain_Fs", _RIG, 1.0, 1e-3, _INF, "-", "measured Fs = gain_Fs x true Fs"),
     )
+}
+
+#: The actuator causes the transfer-system identification names (:mod:`.transfer`), with the
+#: parameter each is reported by; they are not fitted by the replays.
+ACTUATOR_CAUSES = {
+    "actuator_delay": ("tau", "s", "the actuator's effective delay at the forcing frequency differs from nominal"),
+    "servo_bandwidth": ("rate", "rad/s", "the servo's natural frequency (second order) differs from nominal"),
+    "servo_gain": ("gain_servo", "-", "the actuator's static gain differs from 1 (x = gain x command)"),
+}
+
+#: The part of a substructured test each cause belongs to: the numerical model (code), the physical
+#: substructure (specimen) or the transfer system (actuator and sensors).
+PART_OF = {
+    "oscillator_mass": "numerical",
+    "oscillator_damping": "numerical",
+    "oscillator_stiffness": "numerical",
+    "spring_hardening": "numerical",
+    "forcing_gain": "numerical",
+    "platform_mass": "physical",
+    "platform_damping": "physical",
+    "pendulum_length": "physical",
+    "coulomb_friction": "physical",
+    "viscous_damping": "physical",
+    "quadratic_drag": "physical",
+    "actuator_delay": "transfer",
+    "servo_bandwidth": "transfer",
+    "servo_gain": "transfer",
+    "force_sensor_gain": "transfer",
+    "angle_offset": "transfer",
 }
 
 #: Parameters that live on the measurement side, with their neutral values.

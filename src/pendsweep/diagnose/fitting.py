@@ -11,12 +11,12 @@ from scipy.optimize import least_squares
 
 from ..errors import ConfigError
 from .effects import CHAIN_PARAMS, EFFECTS, effect
-from .replay import NUISANCE, REST_LEVEL_SIGMA, Replay
+from .replay import REST_LEVEL_SIGMA, Replay
 
 #: Channels recorded exactly (the controller's own command): no sensor noise to compare with.
 EXACT_CHANNELS = ("y_cmd",)
 #: Scales of the free-decay nuisance parameters [rad], [rad/s].
-_NUISANCE_SCALE = {"theta_init": 0.01, "thetadot_init": 0.05, "theta_offset": 0.01}
+_NUISANCE_SCALE = {"theta_offset": 0.01}
 _DIVERGED = 1e3
 
 
@@ -69,7 +69,9 @@ class Problem:
         # Free decays of one rig, each released and zeroed by hand: every record's encoder zero
         # is a nuisance of its own (real zeros differ by degrees; one shared zero, or none, leaves
         # a residual far above the encoder floor).
-        self.nuisance = NUISANCE + (("theta_offset",) if self.joint and self.kind == "free_decay" else ())
+        self.nuisance = self.replays[0].nuisance + (
+            ("theta_offset",) if self.joint and self.kind == "free_decay" else ()
+        )
         samples = np.array([len(r.eval_idx) * len(r.channels) for r in replays], dtype=float)
         self.floor = float(math.sqrt(np.sum(samples * [r.noise_floor() ** 2 for r in replays]) / samples.sum()))
 
@@ -77,7 +79,7 @@ class Problem:
         return f"{param}@{i}" if self.joint else param
 
     def per_record(self, param: str) -> bool:
-        return param in CHAIN_PARAMS or param in NUISANCE
+        return param in CHAIN_PARAMS or param in self.nuisance
 
     def record_values(self, values: dict[str, float], i: int) -> dict[str, float]:
         """The values record ``i`` is simulated with: shared ones and its own (suffix removed)."""
@@ -221,13 +223,14 @@ def _params(problem: Problem, causes: tuple[str, ...], starts: dict[str, float])
             out.append(_Param(key, i, s0, max(abs(s0), eff.scale), eff.lower, eff.upper))
     freed = {p.key for p in out}
     for i, rp in enumerate(problem.replays):
-        if rp.fits_initial_state:
-            for nm in problem.nuisance:
-                key = problem.key(nm, i)
-                if key in freed:  # the encoder zero, when a candidate (angle_offset) frees it already
-                    continue
-                guess = rp.initial_guess.get(nm, rp.nominal.get(nm, 0.0))
-                out.append(_Param(key, i, starts.get(key, guess), _NUISANCE_SCALE[nm], -math.inf, math.inf))
+        for nm in problem.nuisance:
+            key = problem.key(nm, i)
+            if key in freed:  # the encoder zero, when a candidate (angle_offset) frees it already
+                continue
+            guess = rp.initial_guess.get(nm, rp.nominal.get(nm, 0.0))
+            scale = rp.nuisance_scale.get(nm, _NUISANCE_SCALE.get(nm, 1.0))
+            lower, upper = rp.nuisance_bounds.get(nm, (-math.inf, math.inf))
+            out.append(_Param(key, i, starts.get(key, guess), scale, lower, upper))
     return out
 
 

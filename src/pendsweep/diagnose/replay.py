@@ -111,50 +111,21 @@ class Replay:
         Cross-validation folds (2 to 20).
     """
 
+    #: Nuisance parameters fitted with every model of this kind (free decays: the release state).
+    nuisance: tuple[str, ...] = ()
+    #: Their scales for the fit [their units], and bounds (default: none).
+    nuisance_scale: dict[str, float] = {}
+    nuisance_bounds: dict[str, tuple[float, float]] = {}
+
     def __init__(self, record: Record, horizon: float | None = None, folds: int = FOLDS):
         if record.kind not in CHANNELS:
             raise ConfigError(f"kind {record.kind!r} cannot be replayed yet; supported kinds: {', '.join(CHANNELS)}")
-        if not 2 <= folds <= 20:
-            raise ConfigError(f"folds = {folds!r} must lie in [2, 20]")
-        self.record = record
         self.kind = record.kind
-        self.dt = record.dt
-        self.n = len(record.data)
-        self.t = record.t - record.t[0]
-        every = tuple(c for c in CHANNELS[record.kind] if c in record.data)
-        # A channel that never changes (a pendulum resting through a forced record) still says where
-        # it rests: it is compared by its level. Its error is relative to that level (a zero level
-        # takes unit scale) and its noise is zero (an exactly constant quantised reading), so a model
-        # that holds the level adds nothing to the error or to the noise floor, and one that cannot
-        # hold it (an encoder zero error) shows a discrepancy.
-        self.constant = tuple(c for c in every if np.ptp(record.channel(c)) == 0.0)
-        if len(self.constant) == len(every):
-            raise ConfigError(
-                f"{record.name}: every compared channel ({', '.join(every)}) is constant; nothing to compare"
-            )
-        self.channels = every
-        self.meas = {c: record.channel(c) for c in self.channels}
-        self.scale = {
-            c: (abs(float(self.meas[c][0])) or 1.0) if c in self.constant else float(np.std(self.meas[c]))
-            for c in self.channels
-        }
-        self.noise = {c: 0.0 if c in self.constant else noise_std(self.meas[c]) for c in self.channels}
-        # The pendulum rests through the record: its replay starts at its equilibrium (simulate)
-        # and its constant angle locates the encoder zero to REST_LEVEL_SIGMA.
-        self.rests = "theta" in self.constant
-        self.folds = int(folds)
         # Substructured: the first samples replay commands from before the record (unknown).
-        self.start = int(math.ceil(COMMAND_HISTORY / self.dt)) if self.kind == "substructured" else 0
-        self.moving = self._moving()
-        self.moving[: self.start] = False
-        self.eval_idx = np.flatnonzero(self.moving)
-        n_blocks = self.folds * BLOCKS_PER_FOLD
-        if len(self.eval_idx) < 10 * n_blocks:
-            raise ConfigError(
-                f"{record.name}: the data move in {len(self.eval_idx)} samples, too few for "
-                f"{n_blocks} cross-validation blocks of 10 samples"
-            )
-        self.blocks = np.array_split(self.eval_idx, n_blocks)
+        start = int(math.ceil(COMMAND_HISTORY / record.dt)) if self.kind == "substructured" else 0
+        self._compare(record, CHANNELS[record.kind], folds, start)
+        if self.kind == "free_decay":
+            self.nuisance, self.nuisance_scale = NUISANCE, {"theta_init": 0.01, "thetadot_init": 0.05}
         self.nominal = nominal_values(record.params, record.tau)
         est = {c: smoothed(record.channel(c), self.dt) for c in ("y", "theta", "y_cmd") if c in record.data}
         if self.kind == "free_decay":
@@ -189,6 +160,51 @@ class Replay:
         # Free swings integrate with steps of at most MAX_STEP: the held sgn of the
         # Coulomb term makes the model depend on the step.
         self.substeps = max(1, math.ceil(self.dt / MAX_STEP - 1e-9))
+
+    def _compare(self, record: Record, channels: tuple[str, ...], folds: int, start: int) -> None:
+        """Set up what is compared: ``channels`` (those recorded), their noise, the moving samples, the folds.
+
+        Samples before ``start`` are never compared.
+        """
+        if not 2 <= folds <= 20:
+            raise ConfigError(f"folds = {folds!r} must lie in [2, 20]")
+        self.record = record
+        self.dt = record.dt
+        self.n = len(record.data)
+        self.t = record.t - record.t[0]
+        every = tuple(c for c in channels if c in record.data)
+        # A channel that never changes (a pendulum resting through a forced record) still says where
+        # it rests: it is compared by its level. Its error is relative to that level (a zero level
+        # takes unit scale) and its noise is zero (an exactly constant quantised reading), so a model
+        # that holds the level adds nothing to the error or to the noise floor, and one that cannot
+        # hold it (an encoder zero error) shows a discrepancy.
+        self.constant = tuple(c for c in every if np.ptp(record.channel(c)) == 0.0)
+        if len(self.constant) == len(every):
+            raise ConfigError(
+                f"{record.name}: every compared channel ({', '.join(every)}) is constant; nothing to compare"
+            )
+        self.channels = every
+        self.meas = {c: record.channel(c) for c in self.channels}
+        self.scale = {
+            c: (abs(float(self.meas[c][0])) or 1.0) if c in self.constant else float(np.std(self.meas[c]))
+            for c in self.channels
+        }
+        self.noise = {c: 0.0 if c in self.constant else noise_std(self.meas[c]) for c in self.channels}
+        # The pendulum rests through the record: its replay starts at its equilibrium (simulate)
+        # and its constant angle locates the encoder zero to REST_LEVEL_SIGMA.
+        self.rests = "theta" in self.constant
+        self.folds = int(folds)
+        self.start = start
+        self.moving = self._moving()
+        self.moving[: self.start] = False
+        self.eval_idx = np.flatnonzero(self.moving)
+        n_blocks = self.folds * BLOCKS_PER_FOLD
+        if len(self.eval_idx) < 10 * n_blocks:
+            raise ConfigError(
+                f"{record.name}: the data move in {len(self.eval_idx)} samples, too few for "
+                f"{n_blocks} cross-validation blocks of 10 samples"
+            )
+        self.blocks = np.array_split(self.eval_idx, n_blocks)
 
     # -- simulation -------------------------------------------------------------
     def simulate(self, values: dict[str, float], stop: int | None = None) -> dict[str, np.ndarray]:

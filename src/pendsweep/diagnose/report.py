@@ -100,9 +100,10 @@ def _figures(diag: Diagnosis, outdir: Path) -> list[Path]:
             legend_right(ax)
         k += 1
     ax, ax2 = axes[k], axes[k + 1]
-    if "theta" in rp.constant:  # the pendulum never moved (compared by its level only): no decay to show
+    if "theta" not in rp.meas or "theta" in rp.constant:  # no swing compared (numerical part; pendulum at rest)
+        why = "theta constant: no swing" if "theta" in rp.meas else "no pendulum in this part"
         for a in (ax, ax2):
-            a.text(0.5, 0.5, "theta constant: no swing", ha="center", va="center", transform=a.transAxes)
+            a.text(0.5, 0.5, why, ha="center", va="center", transform=a.transAxes)
             a.set_axis_off()
         files.append(_save(fig, outdir / "signatures.png"))
         return files

@@ -131,7 +131,7 @@ def summarize(replay, nominal_sim: dict[str, np.ndarray]) -> dict[str, Any]:
         spec = residual_spectrum(res[np.isfinite(res)], replay.dt)
         out[f"{c}_residual_mean"] = float(np.nanmean(res))
         out[f"{c}_residual_peak_hz"] = float(spec.frequency[spec.psd[1:].idxmax()]) if len(spec) > 1 else math.nan
-        if replay.kind != "free_decay" and np.all(np.isfinite(res)):
+        if getattr(replay, "force", None) is not None and np.all(np.isfinite(res)):
             xc = cross_correlation(res, replay.force, replay.dt, 0.1)
             best = xc.iloc[int(np.argmax(np.abs(xc["corr"].to_numpy())))]
             out[f"{c}_xcorr_Fe_peak_lag_s"] = float(best.lag)
@@ -178,8 +178,9 @@ def residual_signature(problem, fit, peaks: int = 3) -> dict[str, Any]:
     (f_e for forced records, the swing frequency for free decays) with their share of
     the residual power; ``lag1``: lag-1 autocorrelation (about 0 for white sensor noise,
     near 1 for a structured residual); correlations (largest |corr| over lags within
-    0.1 s) with the inputs: F_e, and y_cmd for substructured records; with the measured
-    angle and angular velocity for free decays (a frequency or a damping error).
+    0.1 s) with the inputs: F_e, and y_cmd for substructured records; the platform's
+    acceleration for the physical part; with the measured angle and angular velocity
+    for free decays (a frequency or a damping error).
     """
     out: dict[str, Any] = {}
     for i, rp in enumerate(problem.replays):
@@ -190,6 +191,8 @@ def residual_signature(problem, fit, peaks: int = 3) -> dict[str, Any]:
         if rp.kind == "free_decay":
             th, thd = smoothed(rp.meas["theta"], rp.dt)
             inputs = {"theta": th[idx], "thetadot": thd[idx]}
+        elif rp.kind == "physical":
+            inputs = {"xddot": rp.motion[:: rp.per_sample, 2][idx]}
         else:
             inputs = {"Fe": rp.force[idx]}
             if rp.kind == "substructured":

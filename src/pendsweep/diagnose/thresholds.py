@@ -20,10 +20,10 @@ PARTNERS = 3
 #: Second rounds start from this many best single causes.
 BEAM = 2
 #: Cross-validated squared error above this multiple of the floor^2 is "unexplained" (per kind).
-UNEXPLAINED_RATIO = {"free_decay": 3.0, "forced": 30.0, "substructured": 4.5}
+UNEXPLAINED_RATIO = {"free_decay": 3.0, "forced": 30.0, "substructured": 4.5, "physical": 4.5, "numerical": 4.5}
 #: One sensor channel's cross-validated mean square above this multiple of its own noise variance
 #: is a structured residual too (kinds whose pooled floor one noisy channel dominates).
-CHANNEL_RATIO = {"substructured": 60.0}
+CHANNEL_RATIO = {"substructured": 60.0, "physical": 120.0}
 #: An estimate more than this factor from its nonzero nominal is physically implausible: the cause
 #: is not named (its parameter is absorbing something else). The identifiable ranges are 1.03-8 x
 #: nominal; on the calibration range A the largest ratio of any best or runner-up single cause was
@@ -36,4 +36,4 @@ IMPLAUSIBLE_FACTOR = 1000.0
 #: (substructured); each factor brings it to 0.674, the median |z| of a normal error, and none is
 #: below 1 (the substructured jackknife is already wide). Held-out check: the diagnosis
 #: benchmark's ``uncertainty_coverage`` on range B.
-UNCERTAINTY_CALIBRATION = {"free_decay": 1.83, "forced": 3.44, "substructured": 1.0}
+UNCERTAINTY_CALIBRATION = {"free_decay": 1.83, "forced": 3.44, "substructured": 1.0, "physical": 1.0, "numerical": 1.0}

@@ -1,8 +1,14 @@
 """Kernels that replay a measured record: a fixed-pivot pendulum, Eq. (11)
-driven by a recorded force array, and the substructuring loop driven by it.
+driven by a recorded force array, and the substructuring loop driven by it;
+and, each on its own, the three parts of a substructured test (the diagnosis's
+part replays): the transfer system from command to platform motion
+(:func:`transfer_trace`), the physical substructure driven by the platform's
+motion (:func:`platform_trace`) and the numerical model driven by the
+measured force (:func:`numerical_trace`).
 
-Both integrate with classical RK4 at the record's sample step and write one
-row per sample, so simulated and measured channels align index by index.
+They integrate with classical RK4 at the record's sample step (or a whole
+fraction of it) and write one row per sample, so simulated and measured
+channels align index by index.
 """
 
 import math
@@ -13,7 +19,7 @@ import numpy as np
 from ._actuator import hermite
 from ._emulated import eq11_params, eq11_step
 from ._layout import P_B1, P_B2, P_B3, P_G, P_K, P_K3, P_L, P_M_PEND, STATUS_DIVERGED, STATUS_OK
-from ._rhs import signum
+from ._rhs import servo_acc, signum
 from ._steps import model_rk4, pivot_pendulum_rk4
 from ._substructured import interface_momentum
 
@@ -203,4 +209,219 @@ def substructured_replay(
         if not (math.isfinite(ys) and math.isfinite(th) and math.isfinite(thd)):
             out[i + 1 :, :] = np.nan
             return STATUS_DIVERGED
+    return STATUS_OK
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _delayed_jerk(cmd, cmdd, k, r, tau, dt):
+    """Third time derivative of the command's Hermite interpolant at ``t_k + r - tau`` (constant per segment)."""
+    q = k + (r - tau) / dt
+    if q <= 0.0:
+        return 0.0
+    j = max(math.ceil(q - 1e-9) - 1, 0)
+    return (12.0 * cmd[j] + 6.0 * dt * cmdd[j] - 12.0 * cmd[j + 1] + 6.0 * dt * cmdd[j + 1]) / (dt * dt * dt)
+
+
+@nb.njit(cache=True, nogil=True)
+def transfer_trace(cmd, cmdd, tau, gain, order, rate, zeta, propagator, dt, per_sample, out, x0=math.nan, v0=0.0):
+    """The platform motion a transfer-system model makes of a command record.
+
+    The command enters as ``u = gain * c(t - tau)``, ``c`` the cubic Hermite
+    interpolant of the command samples and their slopes (before the record:
+    its first value). Models by ``order``: 0, a pure delay ``x = u``; 1, a
+    first-order servo ``x' = rate (u - x)``; 2, a second-order servo ``x'' =
+    servo_acc(x, x', u)`` with ``rate = ws``. The servos start at rest on their
+    input's value and advance exactly for the input's cubic over each output
+    row (or from ``(x0, v0)`` when ``x0`` is given: with ``gain = 0``, the
+    free response the diagnosis fits the record's initial state with):
+    ``(x, x')`` at the next row is ``P (x, x', u, u', u'', u''')`` with
+    ``P`` the exact propagator over one row
+    (:func:`pendsweep.diagnose.transfer.servo_propagator`), so the cost does
+    not grow with the servo's bandwidth and the acceleration stays smooth.
+
+    Parameters
+    ----------
+    cmd, cmdd : float64[n]
+        Command samples [m] and slopes [m/s].
+    tau, gain : float
+        Transport delay [s] and static gain [-].
+    order : int
+        0, 1 or 2.
+    rate, zeta : float
+        1/T [1/s] (order 1) or ws [rad/s] and damping ratio (order 2).
+    propagator : float64[2, 6]
+        Over one output row, on ``(x, x', u, u', u'', u''')`` (unused for order 0).
+    dt : float
+        Sample step [s].
+    per_sample : int
+        Output rows per sample step (row ``k * per_sample`` is sample ``k``).
+    out : float64[(n - 1) * per_sample + 1, 3]
+        Filled with x [m], x' [m/s], x'' [m/s^2] at every output row.
+    x0, v0 : float, optional
+        Initial servo state [m], [m/s] (NaN: at rest on the input's value).
+
+    Returns
+    -------
+    int
+        ``STATUS_OK`` or ``STATUS_DIVERGED``.
+    """
+    h = dt / per_sample
+    c, cd, cdd = _delayed_command(cmd, cmdd, 0, 0.0, tau, dt)
+    x, xd = gain * c, gain * cd
+    if order == 1:
+        xd = 0.0
+    if not math.isnan(x0):
+        x, xd = x0, v0
+    rows = out.shape[0]
+    for i in range(rows):
+        k, j = i // per_sample, i % per_sample
+        c, cd, cdd = _delayed_command(cmd, cmdd, k, j * h, tau, dt)
+        u, ud = gain * c, gain * cd
+        if order == 0:
+            x, xd, xdd = u, ud, gain * cdd
+        elif order == 1:
+            xd = rate * (u - x)
+            xdd = rate * (ud - xd)
+        else:
+            xdd = servo_acc(x, xd, u, rate * rate, 2.0 * zeta * rate)
+        out[i, 0], out[i, 1], out[i, 2] = x, xd, xdd
+        if not (math.isfinite(x) and math.isfinite(xd)):
+            out[i:, :] = np.nan
+            return STATUS_DIVERGED
+        if order == 0 or i == rows - 1:
+            continue
+        v = xd if order == 2 else 0.0
+        x, v = _propagate(propagator, x, v, u, ud, gain * cdd, gain * _delayed_jerk(cmd, cmdd, k, j * h, tau, dt))
+        if order == 2:
+            xd = v
+    return STATUS_OK
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _propagate(p, x, v, u, ud, udd, uddd):
+    """One exact servo step: ``p`` (2 x 6) on ``(x, x', u, u', u'', u''')``."""
+    z = (x, v, u, ud, udd, uddd)
+    x_next, v_next = 0.0, 0.0
+    for m in range(6):
+        x_next += p[0, m] * z[m]
+        v_next += p[1, m] * z[m]
+    return x_next, v_next
+
+
+@nb.njit(cache=True, nogil=True)
+def platform_trace(state, p, M2, C2, gain_fs, motion, per_sample, dt, substeps, out):
+    """The physical substructure driven by a prescribed platform motion: pendulum angle and load cell.
+
+    The pendulum of Eq. (2) rides a pivot whose acceleration is read from
+    ``motion`` (a :func:`transfer_trace` output on ``per_sample = 2 *
+    substeps`` rows per sample, so every RK4 stage has its row); the load cell
+    reads ``gain_fs`` times the mean interface force of Eq. (4) over the last
+    sample step (a momentum difference, as the substructured replay's).
+
+    Parameters
+    ----------
+    state : float64[2]
+        ``(theta [rad], thetadot [rad/s])`` at sample 0 of ``motion``.
+    p : float64[10]
+        ``ModelParams.kernel_array()`` (m, l, b1-b3, g are used).
+    M2, C2 : float
+        Platform mass [kg] and damping [kg/s].
+    gain_fs : float
+        Measured F_s = gain_fs x true F_s.
+    motion : float64[rows, 3]
+        Platform x, x', x'' from sample 0 on.
+    per_sample : int
+        Rows of ``motion`` per sample step (``2 * substeps``).
+    dt : float
+        Sample step [s].
+    substeps : int
+        Pendulum RK4 steps per sample.
+    out : float64[n, 2]
+        Filled with theta [rad] and F_s measured [N]; row 0's force is NaN (no
+        step before it).
+
+    Returns
+    -------
+    int
+        ``STATUS_OK`` or ``STATUS_DIVERGED``.
+    """
+    m, l, b1, b2, b3, g = _pendulum_params(p)
+    ms = M2 + m
+    h = dt / substeps
+    th, thd = state[0], state[1]
+    mom_prev = interface_momentum(motion[0, 1], motion[0, 0], thd * math.sin(th), ms, C2, m, l)
+    out[0, 0], out[0, 1] = th, np.nan
+    for i in range(1, out.shape[0]):
+        base = (i - 1) * per_sample
+        for sub in range(substeps):
+            r = base + 2 * sub
+            q = (signum(thd), m, l, b1, b2, b3, g)
+            th, thd = pivot_pendulum_rk4((th, thd), motion[r, 2], motion[r + 1, 2], motion[r + 2, 2], h, q)
+        if not (math.isfinite(th) and math.isfinite(thd)):
+            out[i:, :] = np.nan
+            return STATUS_DIVERGED
+        row = i * per_sample
+        mom = interface_momentum(motion[row, 1], motion[row, 0], thd * math.sin(th), ms, C2, m, l)
+        out[i, 0], out[i, 1] = th, gain_fs * (mom - mom_prev) / dt
+        mom_prev = mom
+    return STATUS_OK
+
+
+@nb.njit(cache=True, nogil=True)
+def numerical_trace(state, model, force, force_half, feedback, gain, dt, out, central=False):
+    """The numerical model, Eq. (3), driven by the recorded forces: the controller's y* on its own.
+
+    Each tick takes one step of ``M1 y'' + C1 y' + K y + k3 y^3 = gain
+    F_e(t) - F_fb[k]``: RK4 with the fed-back force held over the tick, as the
+    substructured replay's controller does; or (``central``) the explicit
+    central-difference step with the velocity centred, the classic integrator
+    of hybrid tests, with both forces taken at the tick: ``(M1/dt^2 +
+    C1/(2 dt)) y[k+1] = F[k] - (K - 2 M1/dt^2) y[k] - (M1/dt^2 - C1/(2 dt))
+    y[k-1] - k3 y[k]^3``.
+
+    Parameters
+    ----------
+    state : float64[2]
+        ``(y* [m], y*' [m/s])`` at sample 0.
+    model : tuple of float
+        ``(M1 [kg], C1 [kg/s], K [N/m], k3 [N/m^3])``.
+    force, force_half : float64[n], float64[n - 1]
+        Recorded F_e at the samples and midway [N].
+    feedback : float64[n]
+        The force fed back at each tick [N] (the load-cell reading).
+    gain : float
+        Applied force = gain x F_e.
+    dt : float
+        Sample step [s].
+    out : float64[n, 2]
+        Filled with y*, y*' at every sample, row 0 being ``state``.
+    central : bool
+        Central difference instead of RK4.
+
+    Returns
+    -------
+    int
+        ``STATUS_OK`` or ``STATUS_DIVERGED``.
+    """
+    M1, C1, K, k3 = model
+    ys, yds = state[0], state[1]
+    out[0, 0], out[0, 1] = ys, yds
+    # Central difference: the step before the first from the state's Taylor expansion.
+    f = gain * force[0] - feedback[0]
+    ys_prev = ys - dt * yds + 0.5 * dt * dt * (f - C1 * yds - K * ys - k3 * ys * ys * ys) / M1
+    lhs = M1 / (dt * dt) + C1 / (2.0 * dt)
+    for k in range(out.shape[0] - 1):
+        f = feedback[k]
+        if central:
+            rhs = gain * force[k] - f - (K - 2.0 * M1 / (dt * dt)) * ys - (M1 / (dt * dt) - C1 / (2.0 * dt)) * ys_prev
+            ys_next = (rhs - k3 * ys * ys * ys) / lhs
+            yds = (ys_next - ys_prev) / (2.0 * dt)
+            ys_prev, ys = ys, ys_next
+        else:
+            u0, uh, u1 = gain * force[k] - f, gain * force_half[k] - f, gain * force[k + 1] - f
+            ys, yds = model_rk4((ys, yds), u0, uh, u1, dt, model)
+        if not (math.isfinite(ys) and math.isfinite(yds)):
+            out[k + 1 :, :] = np.nan
+            return STATUS_DIVERGED
+        out[k + 1, 0], out[k + 1, 1] = ys, yds
     return STATUS_OK

@@ -18,6 +18,8 @@ Systems and their tuples (SI units):
 * :func:`servo_rig_rhs`, the rig with the servo actuator: platform ``x'' =
   ws^2 (u - x) - 2 zeta ws x'`` carrying the pendulum, ``x = (x, x', theta,
   theta')``, ``u`` the delayed command, ``p = (ws^2, 2 zeta ws, sgn, m, l, b1, b2, b3, g)``.
+  Its servo law :func:`servo_acc` is shared with the diagnosis's transfer models
+  (:func:`pendsweep.kernels._measured.transfer_trace`).
 * :func:`pivot_pendulum_rhs`, the pendulum on a pivot of prescribed
   acceleration (Eq. (2); a fixed pivot for free swing): ``x = (theta,
   theta')``, ``u = x''``, ``p = (sgn, m, l, b1, b2, b3, g)``.
@@ -112,11 +114,16 @@ def model_rhs(x, u, p):
     return v, (u - C1 * v - K * y - k3 * y * y * y) / M1
 
 
+def servo_acc(xp, xd, u, ws2, tzw):
+    """Second-order servo: platform acceleration ``ws^2 (u - x) - 2 zeta ws x'`` [m/s^2] for command ``u``."""
+    return ws2 * (u - xp) - tzw * xd
+
+
 def servo_rig_rhs(x, u, p):
     """The rig with the servo actuator: platform position ``x`` follows command ``u`` [m]."""
     xp, xd, th, thd = x
     ws2, tzw, sgn, m, l, b1, b2, b3, g = p
-    a = ws2 * (u - xp) - tzw * xd
+    a = servo_acc(xp, xd, u, ws2, tzw)
     return xd, a, thd, pendulum_acc(th, thd, a, sgn, m, l, b1, b2, b3, g)
 
 
@@ -143,6 +150,7 @@ PHYSICS_FUNCTIONS = (
     "eq11_rhs_trig",
     "eq11_rhs",
     "model_rhs",
+    "servo_acc",
     "servo_rig_rhs",
     "pivot_pendulum_rhs",
     "mathieu_rhs",

@@ -1,0 +1,218 @@
+"""Servo-rig benchmark: substructured records of rigs and controllers unlike the replay's (issue 22).
+
+Records come from :func:`pendsweep.diagnose.testbench.generate_rig_case`: first-
+and second-order servos behind transport delays (and near-ideal ones), commands
+ramped or held, forward predictors, load-cell lags, central-difference
+controllers, calibration errors of the nominal delay, LVDT noise and drift
+(no code shared with the replays). Each record is diagnosed part by part
+(:func:`pendsweep.diagnose.chain.diagnose_parts`); the first
+:data:`CLOSED_LOOP_RECORDS` also by the closed-loop replay, the method before
+issue 22, for comparison. Seeds: ``TEST_SEEDS`` (range B); the tolerances were
+chosen on ``CALIBRATION_SEEDS``.
+
+Scores (goals of issue 22 in :data:`GOALS`): clean records named ``none``;
+single-effect recall (an actuator delay or bandwidth effect is right when an
+actuator cause is named); actuator and force-sensor recall; a spurious second
+cause on single-effect records; look-alike causes named right or tied; and the
+confusion matrix per part (numerical model, physical substructure, transfer
+system).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+
+from . import benchmark
+
+#: Records in the full and the quick run, and how many of them are also replayed in closed loop.
+RECORDS, QUICK_RECORDS = 160, 8
+CLOSED_LOOP_RECORDS, QUICK_CLOSED_LOOP = 40, 2
+GOALS = {
+    "clean_named_none": 0.98,
+    "single_recall": 0.97,
+    "actuator_recall": 0.95,
+    "force_sensor_gain_recall": 0.95,
+    "spurious_second_cause": 0.02,
+    "look_alikes_right_or_tied": 0.95,
+}
+ACTUATOR = ("actuator_delay", "servo_bandwidth")
+FIGURE = Path("results/rigs_confusion.png")
+
+
+def right(truth: str, verdict: str) -> bool:
+    """Whether ``verdict`` names ``truth``: an actuator delay and a slower servo are one effect at the forcing."""
+    return verdict == truth or (truth in ACTUATOR and verdict in ACTUATOR)
+
+
+def evaluate(seed: int, closed_loop: bool) -> dict:
+    """Generate the servo-rig case of ``seed``, diagnose it (and in closed loop), score the verdicts."""
+    from ..diagnose import Replay, diagnose
+    from ..diagnose.chain import diagnose_parts
+    from ..diagnose.effects import PART_OF
+    from ..diagnose.testbench import LOOK_ALIKES, generate_rig_case
+
+    category, case, record = generate_rig_case(seed)
+    t0 = time.perf_counter()
+    js = diagnose_parts([record]).to_json()
+    seconds = time.perf_counter() - t0
+    truth = case.label
+    row = {
+        "seed": seed,
+        "category": category,
+        "rate": case.rate,
+        "rig": {k: getattr(case.rig, k) for k in case.rig.__dataclass_fields__},
+        "truth": truth,
+        "truth_part": PART_OF.get(truth, "none"),
+        "verdict": js["cause"],
+        "verdict_parts": sorted({PART_OF[c] for c in js["cause"].split("+") if c in PART_OF}) or ["none"],
+        "tied_with": js["tied_with"],
+        "unexplained": js["unexplained"],
+        "seconds": seconds,
+        "estimate_rel_error": None,
+    }
+    if category == "single":
+        partner = LOOK_ALIKES.get(truth)
+        row["right"] = right(truth, js["cause"])
+        row["spurious"] = truth in js["cause"].split("+") and js["cause"] != truth
+        row["right_or_tied"] = row["right"] or (js["cause"] == partner and truth in js["tied_with"])
+        value = next(iter(case.effects.values()))
+        estimate = _estimate(js, truth)
+        if estimate is not None and row["right"]:
+            row["estimate_rel_error"] = abs(estimate - value) / (abs(value) if truth != "angle_offset" else 0.01)
+    if closed_loop:
+        t0 = time.perf_counter()
+        old = diagnose(Replay(record)).to_json()
+        row["closed_loop_verdict"] = old["cause"]
+        row["closed_loop_seconds"] = time.perf_counter() - t0
+    return row
+
+
+def _estimate(js: dict, cause: str) -> float | None:
+    from ..diagnose.effects import ACTUATOR_CAUSES, EFFECTS
+
+    if cause in ("actuator_delay", "servo_bandwidth"):
+        return js["estimate"].get("tau") if cause == "actuator_delay" else None
+    key = ACTUATOR_CAUSES[cause][0] if cause in ACTUATOR_CAUSES else EFFECTS[cause].param
+    return js["estimate"].get(key)
+
+
+def run_population(seeds, closed_loop: int, n_jobs: int = 2, progress: bool = True) -> list[dict]:
+    """Rows of :func:`evaluate` (joblib processes); the first ``closed_loop`` also in closed loop."""
+    from joblib import Parallel, delayed
+    from tqdm import tqdm
+
+    seeds = list(seeds)
+    it = tqdm(list(enumerate(seeds)), desc="servo-rig records", file=sys.stderr, disable=not progress)
+    return list(Parallel(n_jobs=n_jobs, backend="loky")(delayed(evaluate)(s, k < closed_loop) for k, s in it))
+
+
+def summarize(rows: list[dict]) -> dict:
+    """The scores of the module docstring."""
+    clean = [r for r in rows if r["category"] == "clean"]
+    singles = [r for r in rows if r["category"] == "single"]
+
+    def rate(rs, ok):
+        return sum(map(ok, rs)) / len(rs) if rs else math.nan
+
+    from ..diagnose.testbench import LOOK_ALIKES
+
+    look = [r for r in singles if r["truth"] in LOOK_ALIKES]
+    confusion: dict[str, Counter] = {}
+    for r in clean + singles:
+        confusion.setdefault(r["truth_part"], Counter())["+".join(r["verdict_parts"])] += 1
+    causes: dict[str, Counter] = {}
+    for r in clean + singles:
+        causes.setdefault(r["truth"], Counter())[r["verdict"]] += 1
+    errors = [r["estimate_rel_error"] for r in singles if r["estimate_rel_error"] is not None]
+    looped = [r for r in rows if "closed_loop_verdict" in r]
+    out = {
+        "records": len(rows),
+        "counts": {"clean": len(clean), "single": len(singles)},
+        "clean_named_none": rate(clean, lambda r: r["verdict"] == "none"),
+        "single_recall": rate(singles, lambda r: r["right"]),
+        "actuator_recall": rate([r for r in singles if r["truth"] in ACTUATOR], lambda r: r["right"]),
+        "force_sensor_gain_recall": rate(
+            [r for r in singles if r["truth"] == "force_sensor_gain"], lambda r: r["right"]
+        ),
+        "spurious_second_cause": rate(singles, lambda r: r["spurious"]),
+        "look_alikes_right_or_tied": rate(look, lambda r: r["right_or_tied"]),
+        "flagged_unexplained": rate(clean + singles, lambda r: r["unexplained"]),
+        "recall_per_cause": {t: c[t] / sum(c.values()) for t, c in causes.items() if t != "none"},
+        "confusion_by_cause": {t: dict(c) for t, c in sorted(causes.items())},
+        "confusion_by_part": {t: dict(c) for t, c in sorted(confusion.items())},
+        "estimate_rel_error_quantiles": (
+            {q: float(np.quantile(errors, float(q))) for q in ("0.5", "0.9", "0.99")} if errors else {}
+        ),
+        "seconds_per_record_median": float(np.median([r["seconds"] for r in rows])),
+        "closed_loop_comparison": {
+            "records": len(looped),
+            "parts_right": rate(looped, lambda r: right(r["truth"], r["verdict"])),
+            "closed_loop_right": rate(looped, lambda r: right(r["truth"], r["closed_loop_verdict"])),
+            "closed_loop_seconds_median": float(np.median([r["closed_loop_seconds"] for r in looped]))
+            if looped
+            else math.nan,
+        },
+        "misses": [
+            {k: r[k] for k in ("seed", "category", "rate", "rig", "truth", "verdict", "tied_with", "unexplained")}
+            for r in rows
+            if not right(r["truth"], r["verdict"])
+        ],
+    }
+    out["goals"] = GOALS
+    out["goals_met"] = {
+        k: (out[k] <= goal if k == "spurious_second_cause" else out[k] >= goal) for k, goal in GOALS.items()
+    }
+    return out
+
+
+def plot(summary: dict, path: Path) -> Path:
+    """Confusion matrix by part (rows: the part holding the hidden effect, columns: the parts named)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    conf = summary["confusion_by_part"]
+    truths = sorted(conf)
+    verdicts = sorted({v for c in conf.values() for v in c} | set(truths))
+    mat = np.array([[conf[t].get(v, 0) for v in verdicts] for t in truths], dtype=float)
+    fig = Figure(figsize=(1.5 + 0.9 * len(verdicts), 1.2 + 0.5 * len(truths)))
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot(1, 1, 1)
+    ax.imshow(mat / np.maximum(mat.sum(axis=1, keepdims=True), 1), cmap="Blues", vmin=0, vmax=1)
+    for i in range(len(truths)):
+        for j in range(len(verdicts)):
+            if mat[i, j]:
+                ax.text(j, i, int(mat[i, j]), ha="center", va="center", fontsize=8)
+    ax.set_xticks(range(len(verdicts)), verdicts, rotation=30, fontsize=8)
+    ax.set_yticks(range(len(truths)), truths, fontsize=8)
+    ax.set_xlabel("part(s) named")
+    ax.set_ylabel("part with the hidden effect")
+    ax.set_title(
+        f"servo rigs: clean none {summary['clean_named_none']:.2f}, recall {summary['single_recall']:.2f}, "
+        f"spurious {summary['spurious_second_cause']:.2f}",
+        fontsize=8,
+    )
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    return path
+
+
+@benchmark("rigs")
+def bench_rigs(quick: bool) -> dict:
+    """Part-by-part verdicts on RECORDS servo-rig records of the test seed range (and closed loop on some)."""
+    from ..diagnose.testbench import TEST_SEEDS
+
+    n = QUICK_RECORDS if quick else RECORDS
+    t0 = time.perf_counter()
+    rows = run_population(TEST_SEEDS[:n], QUICK_CLOSED_LOOP if quick else CLOSED_LOOP_RECORDS)
+    summary = summarize(rows)
+    summary["wall_seconds"] = time.perf_counter() - t0
+    summary["seed_range"] = f"TEST_SEEDS (range B) {TEST_SEEDS[0]}..{TEST_SEEDS[0] + n - 1}"
+    summary["figure"] = str(plot(summary, FIGURE))
+    return summary
