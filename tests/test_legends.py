@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 from matplotlib.figure import Figure
-from matplotlib.legend import Legend
 from matplotlib.image import AxesImage
+from matplotlib.legend import Legend
 
 from pendsweep.cli import main
 

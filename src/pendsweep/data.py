@@ -343,7 +343,7 @@ def read_record(path: str | Path, session: int | None = None) -> Record:
     if isinstance(meta, dict) and meta.get("kind") in LOG_KINDS:
         from .logs import record_of_log  # a test's own log (site log, trace): its columns renamed
 
-        return record_of_log(data, meta, name, session)
+        return Record(**record_of_log(data, meta, name, session))
     kind, params, tau, forcing = _parse_metadata(meta, name)
     validate(data, kind, name)  # before the float cast, so that text in a column is named, not a traceback
     data = data.astype({c: np.float64 for c in data.columns if c in UNITS})

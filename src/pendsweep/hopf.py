@@ -62,33 +62,36 @@ from typing import Any
 import numpy as np
 import pandas as pd
 import pyarrow as pa
-from scipy.optimize import brentq
 
 from .backends import make_backend
-from .classify import at_rest
 from .columns import repeated, table
 from .errors import ConfigError
 from .executors import Executor
-from .kernels import N_RECORD_COLUMNS
-from .kernels._layout import (
-    REC_ROTATIONS,
-    REC_THETA_ABSMAX,
-    REC_THETA_SEC,
-    REC_THETADOT_SEC,
-)
-from .kernels._mathieu import mathieu_monodromy
+from .hopf_protocol import hopf_simulate, hopf_simulate_many
 from .params import ENCODER_RESOLUTION, ModelParams, check_value
 from .results import run_metadata
 from .scan import DEFAULT_MAX_WORK, RESULT_ROW_BYTES, Finished, UnitResult, Work, run_scan, sample_indices
+from .semi_trivial import (
+    alpha_hopf_analytic,
+    fe_for_omega_hat,
+    floquet_multipliers,
+    hopf_floquet,
+    semi_trivial_response,
+)
 from .status import Status
+
+#: The Hopf API: the scans here, the methods from :mod:`.semi_trivial` and :mod:`.hopf_protocol`.
+__all__ = [
+    "ANALYTIC_CHUNK", "COLUMNS", "METHODS", "HopfConfig", "HopfScan", "alpha_hopf_analytic", "fe_for_omega_hat",
+    "floquet_multipliers", "hopf_analytic_rows", "hopf_floquet", "hopf_metadata", "hopf_point", "hopf_simulate",
+    "hopf_simulate_rows", "run_hopf", "semi_trivial_response",
+]  # fmt: skip
 
 METHODS = ("analytic", "floquet", "simulate")
 #: Longer even grids of omega_hat are stored in the metadata as ``{"linspace": [first, last, n]}``.
 LINSPACE_MIN = 16
 #: Points of one unit of the closed form, Eq. (12), evaluated at once (a million values: 16 units).
 ANALYTIC_CHUNK = 65536
-#: Envelope [rad] up to which the kicked pendulum is treated as linear (or 4 kicks, if larger).
-LINEAR_LIMIT = 0.1
 KEY_COLUMNS = ["mass_point", "point", "method"]
 #: Columns of a Hopf scan result, in order.
 COLUMNS = [
@@ -107,259 +110,6 @@ COLUMNS = [
     "runs",
     "backend",
 ]
-
-
-# -- the semi-trivial solution --------------------------------------------------
-def fe_for_omega_hat(params: ModelParams, omega_hat: float) -> float:
-    """Forcing frequency [Hz] giving ``omega_hat = w_e / (2 w_p)``."""
-    return omega_hat * params.omega_p / math.pi
-
-
-def semi_trivial_response(params: ModelParams) -> complex:
-    """Complex amplitude ``Y`` [m] of ``y(t) = Im(Y exp(i w_e t))`` with theta = 0.
-
-    Raises ConfigError for a cubic spring (``k3 != 0``), whose response is
-    not a single harmonic.
-    """
-    if params.k3 != 0.0:
-        raise ConfigError(f"k3 = {params.k3:g} N/m^3: the Hopf boundary methods need a linear spring (k3 = 0)")
-    w = params.omega_e
-    return params.alpha / complex(params.K - (params.M + params.m) * w * w, params.C * w)
-
-
-def alpha_hopf_analytic(params: ModelParams, omega_e: np.ndarray | None = None) -> float | np.ndarray:
-    """Eq. (12): boundary amplitude [N] at ``params.fe`` (``b1, b3`` ignored).
-
-    ``omega_e`` [rad/s], an array, evaluates it at many forcing frequencies at
-    once (the other parameters from ``params``); the result is then an array.
-    """
-    w = params.omega_e if omega_e is None else np.asarray(omega_e, dtype=np.float64)
-    total = params.M + params.m
-    kappa = params.C / total
-    kappa_p = params.b2 / (params.m * params.l**2)
-    sigma = (params.omega_nm / w) ** 2 - 1.0
-    sigma_p = 2.0 * ((params.omega_p / w) ** 2 - 0.25)
-    alpha = params.l * w * w * total * np.hypot(kappa / w, sigma) * np.hypot(kappa_p / w, sigma_p)
-    return float(alpha) if omega_e is None else alpha
-
-
-def floquet_multipliers(params: ModelParams, steps: int = 200) -> np.ndarray:
-    """The two Floquet multipliers (complex, shape ``(2,)``) of theta = 0 at ``params.alpha``."""
-    w = params.omega_e
-    Y = semi_trivial_response(params)
-    # y = Im(Y e^{iwt}) = Re(Y) sin + Im(Y) cos, and y'' = -w^2 y.
-    pump = -w * w / params.l
-    monodromy = mathieu_monodromy(
-        params.g / params.l,
-        params.b2 / (params.m * params.l**2),
-        pump * Y.real,
-        pump * Y.imag,
-        w,
-        int(steps),
-    )
-    return np.linalg.eigvals(monodromy)
-
-
-def hopf_floquet(params: ModelParams, steps: int = 200, alpha_max: float = 500.0) -> dict[str, Any]:
-    """Smallest alpha [N] where max |Floquet multiplier| reaches 1.
-
-    A geometric grid (ratio 1.2 from 1e-3 N) finds the first sign change of
-    ``log max|mu|``, then brentq refines it to 1e-6 N. Returns a dict with
-    ``alpha_H``, ``status`` (``ok`` or ``not-found`` below ``alpha_max``),
-    ``multiplier`` (the real part of the critical multiplier: -1 for the
-    subharmonic resonance, +1 for the harmonic one) and ``runs`` (monodromy
-    evaluations).
-    """
-    runs = 0
-
-    def log_rho(alpha: float) -> float:
-        nonlocal runs
-        runs += 1
-        return float(np.log(np.abs(floquet_multipliers(params.replace(alpha=alpha), steps)).max()))
-
-    lo, hi = 0.0, 1e-3
-    while log_rho(hi) <= 0.0:
-        lo, hi = hi, hi * 1.2
-        if hi > alpha_max:
-            return dict(alpha_H=math.nan, status="not-found", multiplier=math.nan, runs=runs)
-    alpha = brentq(log_rho, lo, hi, xtol=1e-6) if lo > 0 else hi
-    mu = floquet_multipliers(params.replace(alpha=alpha), steps)
-    critical = mu[np.argmax(np.abs(mu))]
-    return dict(alpha_H=alpha, status="ok", multiplier=float(critical.real), runs=runs)
-
-
-# -- the simulated protocol -----------------------------------------------------
-def kicked_records_many(
-    backend, params: list[ModelParams], kick: float, settle_periods: int, periods: int
-) -> tuple[np.ndarray, list[Status]]:
-    """Kick the pendulum off the semi-trivial solution and record what follows, for many points.
-
-    The one place the simulate method touches a backend. The oscillator
-    starts on its steady response, with the pendulum at rest, and runs
-    ``settle_periods`` (to settle any backend-specific states); then the
-    pendulum is kicked (:meth:`~pendsweep.backends.Backend.kick`). Both
-    stages go through the backend's ``run_points``, so a batched backend
-    integrates all points at once.
-
-    Returns
-    -------
-    records : float64[n, periods, 8]
-        Per-period records after the kick (``pendsweep.kernels.RECORD_COLUMNS``:
-        the envelope is ``theta_absmax``, the section ``theta_sec, thetadot_sec``).
-    status : list of Status
-    """
-    starts = []
-    for q in params:
-        Y = semi_trivial_response(q)
-        starts.append(backend.initial_state(q, Y.imag, q.omega_e * Y.real, 0.0, 0.0))
-    settled = backend.run_points(params, np.asarray(starts), settle_periods, 1)
-    records = np.full((len(params), periods, N_RECORD_COLUMNS), np.nan)
-    status = [s.status for s in settled]
-    ok = [i for i, s in enumerate(settled) if s.status is Status.OK]
-    kicked = np.asarray([backend.kick(settled[i].state, kick) for i in ok])
-    for i, r in zip(ok, backend.run_points([params[i] for i in ok], kicked, 0, periods) if ok else []):
-        records[i], status[i] = r.records, r.status
-    return records, status
-
-
-def kicked_records(
-    backend, params: ModelParams, kick: float, settle_periods: int, periods: int
-) -> tuple[np.ndarray, Status]:
-    """:func:`kicked_records_many` for one point: records ``(periods, 8)`` and status."""
-    records, status = kicked_records_many(backend, [params], kick, settle_periods, periods)
-    return records[0], status[0]
-
-
-def envelope_growth_rate(records: np.ndarray, omega_p: float, linear_limit: float) -> float:
-    """Growth rate [1/period] of the kicked pendulum's envelope, two-multiplier fit.
-
-    The stroboscopic pendulum state ``x_k = (theta_k, thetadot_k / omega_p)``
-    of a linear(ised) pendulum obeys ``x_{k+1} = A x_k`` exactly, so its
-    envelope is ``|c1 mu1^k + c2 mu2^k|`` - beating included. ``A`` is fitted
-    by least squares over the periods before the envelope first exceeds
-    ``linear_limit`` rad (at least 3), and the rate is ``log max|eig A|``
-    (``log`` of the largest Floquet multiplier modulus). ``inf`` when the
-    pendulum rotates.
-    """
-    if np.nansum(np.abs(records[:, REC_ROTATIONS])) > 0:
-        return math.inf
-    big = np.flatnonzero(records[:, REC_THETA_ABSMAX] > linear_limit)
-    n = max(3, int(big[0]) if big.size else records.shape[0])
-    x = np.vstack([records[:n, REC_THETA_SEC], records[:n, REC_THETADOT_SEC] / omega_p])
-    A = np.linalg.lstsq(x[:, :-1].T, x[:, 1:].T, rcond=None)[0].T
-    return float(np.log(np.abs(np.linalg.eigvals(A)).max()))
-
-
-def hopf_simulate(
-    params: ModelParams,
-    backend,
-    *,
-    kick: float = 0.01,
-    periods: int = 200,
-    settle_periods: int = 10,
-    tol: float = 0.1,
-    alpha_max: float = 500.0,
-    rest_threshold: float = ENCODER_RESOLUTION,
-) -> dict[str, Any]:
-    """Bisection on alpha with the kick-and-growth-rate criterion (module docstring).
-
-    Alpha is above the boundary when :func:`envelope_growth_rate` is
-    positive and the pendulum has not come to rest (final period's envelope
-    not below ``rest_threshold`` [rad], one encoder pulse by default; see
-    :func:`pendsweep.classify.at_rest`; Coulomb friction can stop it). The search starts at
-    1.25 x Eq. (12) (only as a first guess) and doubles until the pendulum
-    grows; alpha = 0 is stable by definition. Returns a dict with
-    ``alpha_H`` (bracket midpoint), ``bracket_lo/hi`` [N],
-    ``growth_below/above`` (growth rates at the bracket ends [1/period]),
-    ``runs`` and ``status``.
-    """
-    return hopf_simulate_many(
-        [params],
-        backend,
-        kick=kick,
-        periods=periods,
-        settle_periods=settle_periods,
-        tol=tol,
-        alpha_max=alpha_max,
-        rest_threshold=rest_threshold,
-    )[0]
-
-
-def hopf_simulate_many(
-    params: list[ModelParams],
-    backend,
-    *,
-    kick: float = 0.01,
-    periods: int = 200,
-    settle_periods: int = 10,
-    tol: float = 0.1,
-    alpha_max: float = 500.0,
-    rest_threshold: float = ENCODER_RESOLUTION,
-) -> list[dict[str, Any]]:
-    """:func:`hopf_simulate` for many points, their bisections in lockstep.
-
-    Every round gathers the next trial alpha of each unfinished search and
-    integrates them in one :func:`kicked_records_many` call, so the batched
-    kernel runs all points at once. Each search takes the same decisions as
-    it would alone.
-    """
-    searches = [_bisection(q, tol, alpha_max) for q in params]
-    results: list[dict[str, Any] | None] = [None] * len(params)
-    trials = {i: next(s) for i, s in enumerate(searches)}
-    while trials:
-        points = list(trials)
-        trial_params = [params[i].replace(alpha=trials[i]) for i in points]
-        records, status = kicked_records_many(backend, trial_params, kick, settle_periods, periods)
-        for k, i in enumerate(points):
-            growth = math.nan
-            if status[k] is Status.OK:
-                rate = envelope_growth_rate(records[k], params[i].omega_p, max(LINEAR_LIMIT, 4.0 * kick))
-                resting = at_rest(records[k][-1, REC_THETA_ABSMAX], rest_threshold)
-                growth = min(rate, 0.0) if resting else rate
-            try:
-                trials[i] = searches[i].send((growth, status[k]))
-            except StopIteration as finished:
-                results[i] = finished.value
-                del trials[i]
-    return results
-
-
-def _bisection(params: ModelParams, tol: float, alpha_max: float):
-    """The bisection of :func:`hopf_simulate` as a generator.
-
-    Yields trial amplitudes [N]; is sent ``(growth rate, status)`` for each;
-    returns the result dict (``StopIteration.value``).
-    """
-    runs = 0
-    lo, g_lo = 0.0, math.nan
-    hi = 1.25 * alpha_hopf_analytic(params) or 1.0
-    while True:
-        g_hi, status = yield hi
-        runs += 1
-        if status is not Status.OK:
-            return _simulate_row(math.nan, lo, hi, g_lo, g_hi, runs, status.value)
-        if g_hi > 0.0:
-            break
-        lo, g_lo, hi = hi, g_hi, 2.0 * hi
-        if hi > alpha_max:
-            return _simulate_row(math.nan, lo, math.nan, g_lo, math.nan, runs, "not-found")
-    while hi - lo > tol:
-        mid = 0.5 * (lo + hi)
-        g, status = yield mid
-        runs += 1
-        if status is not Status.OK:
-            return _simulate_row(math.nan, lo, hi, g_lo, g_hi, runs, status.value)
-        if g > 0.0:
-            hi, g_hi = mid, g
-        else:
-            lo, g_lo = mid, g
-    return _simulate_row(0.5 * (lo + hi), lo, hi, g_lo, g_hi, runs, "ok")
-
-
-def _simulate_row(alpha, lo, hi, g_lo, g_hi, runs, status) -> dict[str, Any]:
-    return dict(
-        alpha_H=alpha, bracket_lo=lo, bracket_hi=hi, growth_below=g_lo, growth_above=g_hi, runs=runs, status=status
-    )
 
 
 # -- scans ------------------------------------------------------------------------

@@ -27,7 +27,6 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from .data import Record
 from .errors import ConfigError, ParameterError
 from .params import ModelParams
 
@@ -62,8 +61,11 @@ def actuator_of(options: dict[str, Any]) -> tuple[dict[str, Any], float]:
     return {"model": "delay", "tau": delay}, delay
 
 
-def record_of_log(data: pd.DataFrame, meta: dict[str, Any], name: str, session: int | None = None) -> Record:
-    """The record of a site log or trace (module docstring). ``session``: a site log's client (default: the last)."""
+def record_of_log(data: pd.DataFrame, meta: dict[str, Any], name: str, session: int | None = None) -> dict[str, Any]:
+    """The fields of the record of a site log or trace (module docstring), for :class:`pendsweep.data.Record`.
+
+    ``session``: a site log's client (default: the last).
+    """
     kind = meta["kind"]
     if kind == "site-log":
         if data.empty:
@@ -97,4 +99,5 @@ def record_of_log(data: pd.DataFrame, meta: dict[str, Any], name: str, session: 
         raise ConfigError(f"{name}: its params are not a model: {exc}") from None
     actuator, tau = actuator_of(options)
     sensors = {c: SENSORS[c] for c in SENSORS if c in frame.columns}
-    return Record(frame, record_kind, model, tau, forcing, name, actuator, sensors)
+    return dict(data=frame, kind=record_kind, params=model, tau=tau, forcing=forcing, name=name,
+                actuator=actuator, sensors=sensors)  # fmt: skip
