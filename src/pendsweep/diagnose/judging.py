@@ -10,7 +10,7 @@ from scipy import stats
 
 from .effects import effect
 from .fitting import EXACT_CHANNELS, Fit, Problem, _resting_level_sigma
-from .thresholds import CHANNEL_RATIO, FLOOR_SHARE, IMPLAUSIBLE_FACTOR, P_VALUE, Z_BOUNDED, Z_MIN
+from .thresholds import CHANNEL_RATIO, FLOOR_SHARE, IMPLAUSIBLE_FACTOR, P_VALUE, RELEVANCE, Z_BOUNDED, Z_MIN
 
 
 def _score(problem: Problem, fit: Fit, cause: str) -> float:
@@ -141,11 +141,13 @@ def _judge(problem: Problem, base: Fit, model: Fit, share_min: float, causes: tu
     p = block_test(base, model) if math.isfinite(model.error_cv) else 1.0
     zs = {c: _z(problem, model, c) for c in causes}
     needed = {c: _z_needed(problem, model, c) for c in causes}
+    relevant = {c: _relevant_change(problem, model, c) for c in causes}
     passed = (
         share >= share_min
         and reduction > FLOOR_SHARE * floor2
         and p < P_VALUE
         and all(z >= needed[c] and stable for c, (z, stable) in zs.items())
+        and all(ok for ok, _, _ in relevant.values())
     )
     return {
         "model": model.cause,
@@ -159,8 +161,19 @@ def _judge(problem: Problem, base: Fit, model: Fit, share_min: float, causes: tu
         "z": {c: z for c, (z, _) in zs.items()},
         "z_needed": needed,
         "folds_agree": {c: s for c, (_, s) in zs.items()},
+        "relevant": {c: {"change": change, "needed": need} for c, (_, change, need) in relevant.items() if need},
         "passed": bool(passed),
     }
+
+
+def _relevant_change(problem: Problem, fit: Fit, cause: str) -> tuple[bool, float, float]:
+    """Whether ``cause``'s relative change from nominal reaches :data:`RELEVANCE` (its kind's, else none);
+    the smallest change over its parameters and the change needed."""
+    param = effect(cause).param
+    need = RELEVANCE.get(problem.kind, {}).get(param, 0.0)
+    changes = [abs(fit.values[k] / problem.nominal_of(k) - 1.0) for k in fit.keys_of(cause) if problem.nominal_of(k)]
+    change = min(changes, default=math.inf)
+    return change >= need, change, need
 
 
 def failed_tests(judgement: dict[str, Any]) -> list[str]:
@@ -183,6 +196,9 @@ def failed_tests(judgement: dict[str, Any]) -> list[str]:
             )
         if not j["folds_agree"][c]:
             out.append(f"{c}: the folds disagree on the direction of the change")
+    for c, r in j.get("relevant", {}).items():
+        if r["change"] < r["needed"]:
+            out.append(f"{c}: changes {100 * r['change']:.1f} % from nominal, {100 * r['needed']:g} % is a fault")
     if j.get("chain_ok") is False:
         out.append("does not beat its single cause with the actuator delay freed (absorbs model-form error)")
     return out
