@@ -74,6 +74,16 @@ DEFAULT_MAX_WORK = 1e10
 #: The same for basin and parameter maps, whose estimate counts every start to its cap (early stop does
 #: 10-30 % of it): about a day of the batched kernel on a 2-core machine at the measured ~10 ns per step.
 PER_START_MAX_WORK = 1e13
+#: The same for backends that run one start at a time (the substructured loop, about 1e6 steps a
+#: second): about a day of it.
+UNBATCHED_PER_START_MAX_WORK = 1e11
+
+
+def per_start_max_work(backend: str) -> float:
+    """The default work limit of a basin or parameter map on ``backend`` (a day at its measured rate)."""
+    from .backends import BACKENDS
+
+    return PER_START_MAX_WORK if getattr(BACKENDS.get(backend), "batched", True) else UNBATCHED_PER_START_MAX_WORK
 
 
 @dataclass(frozen=True)

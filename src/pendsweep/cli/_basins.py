@@ -13,8 +13,8 @@ import click
 
 from ..errors import ConfigError, ParameterError
 from ..params import PARAM_SPECS
-from ..scan import PER_START_MAX_WORK
-from ._app import FINITE, LazyChoice, main
+from ..scan import per_start_max_work
+from ._app import ANGLE, FINITE, RATE, LazyChoice, main
 from ._checks import FIGURE_SUFFIXES, check_output, key_values
 from ._executor import apply_options, checkpoint_option, executor_options, max_work, work_options
 from ._sweep_options import DEVICE_OPTION, load_model_file
@@ -176,7 +176,10 @@ def _progress(flag: bool | None) -> bool:
     show_default=True,
     help="Threads for one-start-at-a-time backends (-1: all cores).",
 )
-@apply_options(executor_options() + work_options(PER_START_MAX_WORK))
+@apply_options(
+    executor_options()
+    + work_options(None, "1e13 (a day of the batched kernel), 1e11 one start at a time (the substructured loop)")
+)
 @click.option(
     "-o",
     "--output",
@@ -277,7 +280,7 @@ def basins_command(parameter, start, stop, step, points, **kw):
             overwrite=kw["overwrite"],
             executor=runner,
             checkpoint_seconds=kw["checkpoint_seconds"],
-            max_work=max_work(kw["max_work"], kw["yes"]),
+            max_work=max_work(kw["max_work"] or per_start_max_work(kw.get("backend", "emulated")), kw["yes"]),
         )
     finally:
         runner.close()
@@ -350,10 +353,10 @@ def _rewrite_with_attractors(output: Path, rows) -> None:
 @click.argument("y")
 @apply_options(_model_options(True))
 @click.option(
-    "--theta0", type=FINITE, default=0.1, show_default=True, help="Initial pendulum angle of every cell [rad]."
+    "--theta0", type=ANGLE, default=0.1, show_default=True, help="Initial pendulum angle of every cell [rad], within +-10 pi."
 )
 @click.option(
-    "--thetadot0", type=FINITE, default=0.0, show_default=True, help="Initial pendulum rate of every cell [rad/s]."
+    "--thetadot0", type=RATE, default=0.0, show_default=True, help="Initial pendulum rate of every cell [rad/s], within +-1000."
 )
 @click.option(
     "--max-periods",
@@ -364,7 +367,10 @@ def _rewrite_with_attractors(output: Path, rows) -> None:
 )
 @click.option("--dt", type=FINITE, default=1e-3, show_default=True, help="Requested RK4 step [s].")
 @DEVICE_OPTION
-@apply_options(executor_options() + work_options(PER_START_MAX_WORK))
+@apply_options(
+    executor_options()
+    + work_options(None, "1e13 (a day of the batched kernel), 1e11 one start at a time (the substructured loop)")
+)
 @click.option(
     "-o",
     "--output",
@@ -430,7 +436,7 @@ def map_command(x, y, **kw):
             overwrite=kw["overwrite"],
             executor=runner,
             checkpoint_seconds=kw["checkpoint_seconds"],
-            max_work=max_work(kw["max_work"], kw["yes"]),
+            max_work=max_work(kw["max_work"] or per_start_max_work(kw.get("backend", "emulated")), kw["yes"]),
         )
     finally:
         runner.close()

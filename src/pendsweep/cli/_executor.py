@@ -31,16 +31,20 @@ def executor_options() -> list[Callable]:
     ]
 
 
-def work_options(default: float = DEFAULT_MAX_WORK) -> list[Callable]:
-    """click options ``--max-work STEPS`` and ``--yes``: the limit on a scan's work estimate."""
+def work_options(default: float | None = DEFAULT_MAX_WORK, default_text: str = "") -> list[Callable]:
+    """click options ``--max-work STEPS`` and ``--yes``: the limit on a scan's work estimate.
+
+    ``default`` None: the command picks it (``default_text`` says how, in the help).
+    """
     return [
         click.option(
             "--max-work",
             type=FiniteFloat(1.0, 1e30, "steps"),
             default=default,
-            show_default=True,
+            show_default=default is not None,
             metavar="STEPS",
-            help="Refuse scans estimated above this many integration steps (points x periods x steps per period).",
+            help="Refuse scans estimated above this many integration steps (points x periods x steps per period)"
+            + (f"; default {default_text}." if default_text else "."),
         ),
         click.option(
             "--yes",
