@@ -103,6 +103,10 @@ def _import_graph() -> dict[str, set[str]]:
                 if base.split(".")[0] != "pendsweep":
                     continue
                 found = [f"{base}.{n}" for n in names if f"{base}.{n}" in files] or [base]
+                if found == [base] and base in files and base != name:
+                    # Names taken from a package's own __init__ (``from . import figure``): an edge to the
+                    # package even from its own submodule, whose import of the package is otherwise implied.
+                    targets.add(base)
                 for target in found:
                     parts = target.split(".")
                     for depth in range(2, len(parts) + 1):  # the target and its packages, not the root
@@ -158,8 +162,9 @@ def test_no_import_cycle_between_pendsweep_modules():
     assert not cycles, "import circles: " + "; ".join(" <-> ".join(c) for c in cycles)
 
 
-#: The longest a module may grow (issue 24 split the four over 680 lines along their concepts).
-MAX_MODULE_LINES = 700
+#: The longest a module may grow (issue 24 split the four over 680 lines, then hopf.py, along their concepts;
+#: "about 500 lines": the longest are 570-580, each one concept).
+MAX_MODULE_LINES = 600
 
 
 def test_no_module_is_longer_than_one_concept_reads():

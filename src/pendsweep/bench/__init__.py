@@ -6,72 +6,20 @@ measured in the same run, because absolute timings on a shared machine vary.
 JIT compilation is always excluded: each benchmark warms its kernels first.
 """
 
-from __future__ import annotations
-
-import json
-import platform
-import time
-from collections.abc import Callable
-from pathlib import Path
-from typing import Any
-
-BenchFn = Callable[[bool], dict[str, Any]]
-BENCHMARKS: dict[str, BenchFn] = {}
-
-
-def benchmark(name: str) -> Callable[[BenchFn], BenchFn]:
-    """Decorator registering a benchmark under ``name``."""
-
-    def deco(fn: BenchFn) -> BenchFn:
-        BENCHMARKS[name] = fn
-        return fn
-
-    return deco
-
-
-def best_of(fn: Callable[[], Any], repeat: int = 3) -> float:
-    """Smallest wall time [s] of ``repeat`` calls (the least disturbed one)."""
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return min(times)
-
-
-def run_benchmarks(names: list[str] | None, output: Path, quick: bool = False) -> dict[str, Any]:
-    """Run benchmarks, merge their results into ``output`` (JSON) and return them."""
-    from ..errors import ConfigError
-
-    names = names or list(BENCHMARKS)
-    unknown = [n for n in names if n not in BENCHMARKS]
-    if unknown:
-        raise ConfigError(f"unknown benchmark(s) {', '.join(unknown)}; choose from {', '.join(BENCHMARKS)}")
-    report: dict[str, Any] = json.loads(output.read_text()) if output.exists() else {}
-    report["machine"] = {
-        "platform": platform.platform(),
-        "processor": platform.processor(),
-        "python": platform.python_version(),
-    }
-    for name in names:
-        report[name] = BENCHMARKS[name](quick)
-        report[name]["measured"] = time.strftime("%Y-%m-%dT%H:%M:%S%z")
-    output.parent.mkdir(parents=True, exist_ok=True)
-    output.write_text(json.dumps(report, indent=2, sort_keys=True))
-    return report
-
-
-from . import (  # noqa: E402  (registers the benchmarks; needs the registry above)
-    basins,  # noqa: E402,F401  (basin map with early stop, issue 14)
-    command,  # noqa: E402,F401  (whole commands against a plain script)
-    continuation,  # noqa: E402,F401  (continuation against finite differences and sweeps)
-    core,  # noqa: E402,F401  (registers benchmarks)
-    diagnosis,  # noqa: E402,F401  (diagnosis on independent records)
-    gpu,  # noqa: E402,F401  (the CUDA kernel; skipped without a GPU)
-    hopf,  # noqa: E402,F401  (Hopf-boundary scans)
-    measured,  # noqa: E402,F401  (registers benchmarks)
-    rigs,  # noqa: E402,F401  (diagnosis of servo-rig records part by part, issue 22)
-    site,  # noqa: E402,F401  (hybrid tests: OpenSees against pendsweep site and a naive site)
-    substructured,  # noqa: E402,F401  (registers benchmarks)
-    throughput,  # noqa: E402,F401  (batched kernel against its peers)
+from . import (  # noqa: F401  (registers the benchmarks)
+    basins,  # noqa: F401  (basin map with early stop, issue 14)
+    command,  # noqa: F401  (whole commands against a plain script)
+    continuation,  # noqa: F401  (continuation against finite differences and sweeps)
+    core,  # noqa: F401  (registers benchmarks)
+    diagnosis,  # noqa: F401  (diagnosis on independent records)
+    gpu,  # noqa: F401  (the CUDA kernel; skipped without a GPU)
+    hopf,  # noqa: F401  (Hopf-boundary scans)
+    measured,  # noqa: F401  (registers benchmarks)
+    rigs,  # noqa: F401  (diagnosis of servo-rig records part by part, issue 22)
+    site,  # noqa: F401  (hybrid tests: OpenSees against pendsweep site and a naive site)
+    substructured,  # noqa: F401  (registers benchmarks)
+    throughput,  # noqa: F401  (batched kernel against its peers)
 )
+from .registry import BENCHMARKS, benchmark, best_of, run_benchmarks
+
+__all__ = ["BENCHMARKS", "benchmark", "best_of", "run_benchmarks"]

@@ -4,7 +4,7 @@ import argparse
 import json
 from pathlib import Path
 
-from . import BENCHMARKS, run_benchmarks
+from .registry import BENCHMARKS, run_benchmarks
 
 parser = argparse.ArgumentParser(prog="python -m pendsweep.bench", description=__doc__)
 parser.add_argument("names", nargs="*", help=f"benchmarks to run (default all): {', '.join(BENCHMARKS)}")

@@ -9,7 +9,7 @@ import numpy as np
 
 from ..backends._batch import run_batch
 from ..basins import BasinConfig, run_basins
-from . import benchmark
+from .registry import benchmark
 
 
 def _cpu_seconds() -> float:

@@ -27,7 +27,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from . import benchmark
+from .registry import benchmark
 
 NAIVE = Path(__file__).with_name("naive_sweep.py")
 

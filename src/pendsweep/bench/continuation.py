@@ -11,7 +11,7 @@ from ..continuation.shooting import PendulumShooting
 from ..hopf import hopf_floquet
 from ..params import TABLE_IV
 from ..sweep import SweepConfig, run_sweep, value_range
-from . import benchmark, best_of
+from .registry import benchmark, best_of
 
 
 @benchmark("continuation")

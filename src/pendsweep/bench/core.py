@@ -14,7 +14,7 @@ from ..kernels import PHYSICS, eq11_params
 from ..params import FIG9_PO, ModelParams
 from ..sweep import run_sweep
 from ..sweepfile import SWEEPS_DIR, load_sweep
-from . import benchmark, best_of
+from .registry import benchmark, best_of
 
 
 class _Stalled(Exception):

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import benchmark
+from .registry import benchmark
 
 #: Records in the full and the quick run.
 RECORDS, QUICK_RECORDS = 200, 16

@@ -24,7 +24,7 @@ import numpy as np
 from ..backends._batch import run_batch
 from ..gpu import cuda_unavailable_reason, device_name
 from ..params import FIG11A
-from . import benchmark, best_of
+from .registry import benchmark, best_of
 from .throughput import jax_rk4_factory, peer_points
 
 TARGETS = {"float64_point_steps_per_s_min": 2e10, "speedup_vs_jax_same_gpu_min": 10.0}

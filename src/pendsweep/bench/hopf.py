@@ -7,7 +7,7 @@ import numpy as np
 from ..backends import make_backend
 from ..hopf import HopfConfig, run_hopf
 from ..params import TABLE_IV
-from . import benchmark, best_of
+from .registry import benchmark, best_of
 
 
 @benchmark("hopf")

@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import benchmark
+from .registry import benchmark
 
 #: Records in the full and the quick run, and how many of them are also replayed in closed loop.
 RECORDS, QUICK_RECORDS = 160, 8

@@ -33,8 +33,8 @@ from ..backends import make_backend
 from ..backends._batch import run_batch
 from ..kernels import wrap_angle
 from ..params import TABLE_IV, ModelParams
-from . import benchmark
 from .core import solve_ivp_point
+from .registry import benchmark
 
 FIGURE = Path("results/figures/throughput.png")
 TARGETS = {

@@ -353,10 +353,18 @@ def _rewrite_with_attractors(output: Path, rows) -> None:
 @click.argument("y")
 @apply_options(_model_options(True))
 @click.option(
-    "--theta0", type=ANGLE, default=0.1, show_default=True, help="Initial pendulum angle of every cell [rad], within +-10 pi."
+    "--theta0",
+    type=ANGLE,
+    default=0.1,
+    show_default=True,
+    help="Initial pendulum angle of every cell [rad], within +-10 pi.",
 )
 @click.option(
-    "--thetadot0", type=RATE, default=0.0, show_default=True, help="Initial pendulum rate of every cell [rad/s], within +-1000."
+    "--thetadot0",
+    type=RATE,
+    default=0.0,
+    show_default=True,
+    help="Initial pendulum rate of every cell [rad/s], within +-1000.",
 )
 @click.option(
     "--max-periods",

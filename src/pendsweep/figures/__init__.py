@@ -2,43 +2,12 @@
 
 A figure is a function ``f(outdir: Path, quick: bool) -> list[Path]``
 registered with :func:`figure`. ``quick`` shrinks the work for smoke tests.
-Modules that define figures are imported at the bottom of this file.
+Modules that define figures are imported here; the registry itself is :mod:`.registry`.
 """
-
-from __future__ import annotations
-
-from collections.abc import Callable
-from pathlib import Path
-
-FigureFn = Callable[[Path, bool], list[Path]]
-FIGURES: dict[str, FigureFn] = {}
-
-
-def figure(name: str) -> Callable[[FigureFn], FigureFn]:
-    """Decorator registering a figure under ``name``."""
-
-    def deco(fn: FigureFn) -> FigureFn:
-        FIGURES[name] = fn
-        return fn
-
-    return deco
-
-
-def make_figures(names: list[str] | None, outdir: Path, quick: bool = False) -> list[Path]:
-    """Draw the named figures (all when ``names`` is empty) into ``outdir``."""
-    from ..errors import ConfigError
-
-    names = names or list(FIGURES)
-    unknown = [n for n in names if n not in FIGURES]
-    if unknown:
-        raise ConfigError(f"unknown figure(s) {', '.join(unknown)}; choose from {', '.join(FIGURES)}")
-    outdir.mkdir(parents=True, exist_ok=True)
-    written: list[Path] = []
-    for name in names:
-        written += FIGURES[name](outdir, quick)
-    return written
-
 
 # Each module registers its figures on import (Figs. 8, 9, 11; Fig. 10; hybrid tests; stability; measured data;
 # Fig. 11 with continuation branches; basins and two-parameter maps).
-from . import basins, continuation, core, hopf, hybrid, measured, stability  # noqa: E402, F401
+from . import basins, continuation, core, hopf, hybrid, measured, stability  # noqa: F401
+from .registry import FIGURES, FigureFn, figure, make_figures
+
+__all__ = ["FIGURES", "FigureFn", "figure", "make_figures"]

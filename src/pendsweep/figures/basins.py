@@ -20,7 +20,7 @@ from ..basins import BasinConfig, run_basins, scan_summary, survival
 from ..maps import MapConfig, hopf_boundaries, run_map
 from ..params import PARAM_SPECS
 from ..plotting import legend_below, new_figure
-from . import figure
+from .registry import figure
 
 #: Colour per motion class; periodic orbits by period.
 CLASS_COLOURS = {

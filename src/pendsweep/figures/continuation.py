@@ -17,7 +17,7 @@ from ..plotting import draw_bifurcation, new_figure
 from ..results import read_results
 from ..sweep import run_sweep
 from ..sweepfile import SWEEPS_DIR, load_sweep
-from . import figure
+from .registry import figure
 
 #: Per panel (named by its sweep file): ``(parameter value, start angle [rad], period)`` of each
 #: simulated start orbit - the period-2 swing, and at 38 N the rotation of one turn per forcing

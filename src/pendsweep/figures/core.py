@@ -12,7 +12,7 @@ from ..params import FIG8, FIG9_CO, FIG9_PO
 from ..plotting import new_figure, plot_files
 from ..sweep import run_sweep
 from ..sweepfile import SWEEPS_DIR, load_sweep
-from . import figure
+from .registry import figure
 
 
 def fig8_traces(quick: bool):

@@ -10,7 +10,7 @@ from ..hopf import HopfConfig, run_hopf
 from ..params import FIG9_CO, FIG9_PO, FIG11A
 from ..plotting import draw_bifurcation, new_figure
 from ..sweep import SweepConfig, run_sweep, sweep_metadata, value_range
-from . import figure
+from .registry import figure
 
 #: Masses of Fig. 10(b) [kg].
 FIG10B_MASSES = (5.9, 10.9, 15.9, 20.9)

@@ -20,7 +20,7 @@ from ..plotting import draw_bifurcation, new_figure
 from ..sweep import run_sweep, sweep_metadata
 from ..sweepfile import SWEEPS_DIR, load_sweep
 from ..sync import TABLE_I, SyncReport, error_psd, sync_ratio
-from . import figure
+from .registry import figure
 
 INITIAL = (0.0, 0.0, 0.1, 0.0)
 CASES = {"PO": FIG9_PO, "CO": FIG9_CO}

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from . import figure
+from .registry import figure
 
 
 @figure("free_swing_damping")

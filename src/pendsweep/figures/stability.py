@@ -30,7 +30,7 @@ from ..stability import (
     simulated_growth,
     stability_chart,
 )
-from . import figure
+from .registry import figure
 
 #: The compensation check: Table II, p = 0.225, servo, first-order 5-point prediction by 18 ms.
 COMPENSATED = SampledLoop(actuator="servo", predictor_order=1, predictor_points=5, tau_hat=0.018)
