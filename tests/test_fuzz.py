@@ -496,7 +496,7 @@ OTHER: list[tuple[list[str], str]] = [
     (["diagnose", "{rec_good}", "--folds", "1"], "1 is not in the range"),
     (["diagnose", "{rec_good}", "{rec_binary}"], "is not a text (UTF-8) file"),
     (["diagnose", "{rec_good}", "--horizon", "0"], "'0' s is outside"),
-    (["diagnose", "{rec_good}", "-j", "0"], "0 is not in the range"),
+    (["diagnose", "{rec_good}", "-j", "0"], "--jobs = 0: give a number of workers from 1 to 1024"),
     (["diagnose", "{rec_good}", "--max-work", "0"], "'0' steps is outside the accepted range"),
     (["diagnose", "{rec_good}", "--max-work", "nan"], "'nan' is not finite"),
     (["alpha", "--from", "0", "--to", "45", "--max-work", "nan"], "'nan' is not finite"),

@@ -14,7 +14,7 @@ import click
 from ..errors import ConfigError, ParameterError
 from ..params import PARAM_SPECS
 from ..scan import per_start_max_work
-from ._app import ANGLE, FINITE, RATE, LazyChoice, main
+from ._app import ANGLE, FINITE, RATE, SEED, LazyChoice, main
 from ._checks import FIGURE_SUFFIXES, check_output, key_values
 from ._executor import apply_options, checkpoint_option, executor_options, max_work, work_options
 from ._sweep_options import DEVICE_OPTION, load_model_file
@@ -122,9 +122,21 @@ def _progress(flag: bool | None) -> bool:
     help="Grid of N theta x M thetadot starts (cell centres) instead of random samples.",
 )
 @click.option(
-    "--samples", type=int, default=1000, show_default=True, help="Random starts per point (multistart's sampling)."
+    "--starts",
+    "--samples",
+    "samples",
+    type=int,
+    default=1000,
+    show_default=True,
+    help="Random starts per point (as the sweeps' multistart --starts; --samples is its old name).",
 )
-@click.option("--seed", type=int, default=0, show_default=True, help="Seed of the random starts and of backend noise.")
+@click.option(
+    "--seed",
+    type=SEED,
+    default=0,
+    show_default=True,
+    help="Seed of the random starts and of backend noise (0 to 2**63-1).",
+)
 @click.option(
     "--theta", "theta_range", default=None, metavar="A:B", help="Initial theta interval [rad] (default -pi:pi)."
 )

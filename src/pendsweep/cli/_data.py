@@ -57,10 +57,10 @@ def _pairs(items: tuple[str, ...], what: str) -> dict[str, float]:
 @click.option(
     "-j",
     "--jobs",
-    type=click.IntRange(1, 256),
+    type=int,
     default=1,
     show_default=True,
-    help="Candidates fitted in parallel (threads).",
+    help="Candidates fitted in parallel (threads; -1: all cores, as in every command).",
 )
 @click.option(
     "--model",
@@ -99,7 +99,7 @@ def diagnose(data, json_out, report_dir, horizon, folds, causes, jobs, model_fil
     from ..diagnose.chain import PartsDiagnosis, diagnose_records, diagnosis_work_of
     from ..diagnose.parts_report import write_parts_report
     from ..diagnose.report import write_report
-    from ..scan import check_work
+    from ..scan import check_jobs, check_work
     from ._sweep_options import load_model_file
 
     for path in data:
@@ -111,6 +111,7 @@ def diagnose(data, json_out, report_dir, horizon, folds, causes, jobs, model_fil
     if model is not None:
         for record in records:
             record.params = record.params.replace(**model)
+    check_jobs(jobs)
     wanted = list(causes) or None
     check_work(diagnosis_work_of(records, wanted, method), work_limit(max_work, yes), "diagnosis", "replays")
     diag = diagnose_records(records, wanted, jobs, horizon, folds, method)
