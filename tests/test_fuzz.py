@@ -502,6 +502,7 @@ OTHER: list[tuple[list[str], str]] = [
     (["alpha", "--from", "0", "--to", "45", "--max-work", "nan"], "'nan' is not finite"),
     (["basins", "--alpha", "40", "--grid", "10x10", "--max-work", "inf"], "'inf' is not finite"),
     (["hopf", "--what", "1", "--method", "analytic,analytic"], "--method lists analytic twice"),
+    (["trace", "t.parquet", "--periods", "100", "--max-work", "10"], "this trace needs about"),
     (["hopf", "--what", "1", "--method", "analytic", "--set", "l=1e-300"], "l = 1e-300 m is outside"),
     (["basins", "--alpha", "40", "--backend", "substructured", "--grid", "1000x1000"], "more than the limit of 1e+11"),
     (["map", "alpha", "fe", "--alpha", "10:30:4", "--fe", "2.2:2.6:4", "--theta0", "1e300"], "'1e300' rad is outside"),

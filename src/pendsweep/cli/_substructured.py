@@ -10,6 +10,8 @@ from ..errors import ConfigError
 from ..params import ModelParams
 from ._app import ANGLE, FINITE, PATH, RATE, FiniteFloat, LazyChoice, main
 from ._checks import FIGURE_SUFFIXES, check_input, check_memory, check_output, key_values, model_sets
+from ._executor import apply_options, work_options
+from ._executor import max_work as work_limit
 
 
 def _model(alpha, fe, M, C, sets) -> ModelParams:
@@ -89,9 +91,11 @@ TRACE_BYTES_PER_ROW = 400
 @click.option(
     "--thetadot0", type=RATE, default=0.0, show_default=True, help="Initial pendulum rate [rad/s], within +-1000."
 )
+@apply_options(work_options())
 def trace_command(
-    output, alpha, fe, M_, C_, sets, backend, backend_opts, periods, transient_periods, stride, y0, theta0, thetadot0
-):
+    output, alpha, fe, M_, C_, sets, backend, backend_opts, periods, transient_periods, stride, y0, theta0, thetadot0,
+    max_work, yes,
+):  # fmt: skip
     """Write a time series of one hybrid run to OUTPUT (parquet).
 
     Substructured columns (SI): t, Fe, y (= y*), ydot, command, x, xdot, x_meas,
@@ -100,12 +104,16 @@ def trace_command(
     """
     from ..backends import make_backend
     from ..hybrid import run_trace, write_trace
+    from ..scan import Work, check_work
 
     check_output(output, "OUTPUT", (".parquet",))
     params = _model(alpha, fe, M_, C_, sets)
     b = make_backend(backend, **key_values(backend_opts, "--backend-option"))
     rows = periods * b.steps_per_period(params) / stride
-    check_memory(rows * TRACE_BYTES_PER_ROW, f"a trace of {rows:.3g} rows ({periods} periods, stride {stride})")
+    if not yes:
+        check_memory(rows * TRACE_BYTES_PER_ROW, f"a trace of {rows:.3g} rows ({periods} periods, stride {stride})")
+    steps = b.steps_per_period(params)
+    check_work(Work(1, transient_periods + periods, steps), work_limit(max_work, yes), "trace")
     df = run_trace(b, params, (y0, 0.0, theta0, thetadot0), transient_periods, periods, stride)
     status = df.attrs.get("status", "ok")
     meta = {"params": params.to_dict(), "backend": backend, "backend_options": b.options(),
