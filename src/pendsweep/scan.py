@@ -116,6 +116,8 @@ class Work:
 
     def describe(self, runs: str = "runs") -> str:
         """The estimate in words, its runs called ``runs``; "x 1 periods" left out for runs that are not periodic."""
+        if not self.units:  # only work that is not a run of forcing periods (Floquet monodromies)
+            return f"{self.total:.3g} integration steps"
         periods = f" x {self.periods:.4g} periods" if self.periods != 1 else ""
         text = f"{self.total:.3g} integration steps ({self.units} {runs}{periods} x {self.steps:.4g} steps"
         return text + (f" + {self.other:.3g} other)" if self.other else ")")

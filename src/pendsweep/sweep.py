@@ -71,6 +71,8 @@ def value_range(start: float, stop: float, step: float | None = None, points: in
     for name, v in (("from", start), ("to", stop)):
         if not math.isfinite(v):
             raise ConfigError(f"range {name} = {v!r} is not finite")
+    if not math.isfinite(stop - start):
+        raise ConfigError(f"the range from {start:g} to {stop:g} spans more than a float holds; give a narrower one")
     if (step is None) == (points is None):
         raise ConfigError("give exactly one of step or points for a range")
     if points is not None:
