@@ -382,8 +382,9 @@ def test_cli_basins_json_and_bad_input(tmp_path):
     for bad, word in (
         (["--grid", "0x5"], "--grid"),
         (["--theta", "2:1"], "--theta"),
-        (["--samples", "0"], "samples"),
-        (["--max-periods", "5"], "max_periods"),
+        (["--starts", "0"], "--starts = 0"),
+        (["--samples", "0"], "--starts = 0"),  # the old name: the message names the option as spelled now
+        (["--max-periods", "5"], "--max-periods = 5"),
     ):
         r = runner.invoke(main, ["basins", "--alpha", "30", *bad, "-o", str(tmp_path / "x.parquet")])
         assert r.exit_code == 2 and word in r.output, r.output

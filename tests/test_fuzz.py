@@ -504,7 +504,10 @@ OTHER: list[tuple[list[str], str]] = [
     (["hopf", "--what", "1", "--method", "analytic,analytic"], "--method lists analytic twice"),
     (["trace", "t.parquet", "--periods", "100", "--max-work", "10"], "this trace needs about"),
     (["alpha", "--from", "1e308", "--to", "-1e308", "--points", "3"], "spans more than a float holds"),
-    (["hopf", "--what", "1:2:1000", "--method", "floquet", "--max-work", "1e6"], "needs about 2e+07 integration steps,"),
+    (
+        ["hopf", "--what", "1:2:1000", "--method", "floquet", "--max-work", "1e6"],
+        "needs about 2e+07 integration steps,",
+    ),
     (["hopf", "--what", "1", "--method", "analytic", "--set", "l=1e-300"], "l = 1e-300 m is outside"),
     (["basins", "--alpha", "40", "--backend", "substructured", "--grid", "1000x1000"], "more than the limit of 1e+11"),
     (["map", "alpha", "fe", "--alpha", "10:30:4", "--fe", "2.2:2.6:4", "--theta0", "1e300"], "'1e300' rad is outside"),

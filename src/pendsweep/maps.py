@@ -102,7 +102,10 @@ class MapConfig:
         object.__setattr__(self, "y_values", tuple(float(v) for v in self.y_values))
         object.__setattr__(self, "initial", tuple(float(v) for v in self.initial))
         check_device(self.device, self.precision)
-        for name, v, lo in (("max_periods", self.max_periods, SETTLE_WINDOW), ("round_periods", self.round_periods, 1)):
+        for name, v, lo in (
+            ("--max-periods", self.max_periods, SETTLE_WINDOW),
+            ("round_periods", self.round_periods, 1),
+        ):
             if int(v) != v or v < lo:
                 raise ConfigError(f"{name} = {v!r} must be an integer >= {lo}")
         if not (math.isfinite(self.dt) and self.dt > 0):

@@ -107,11 +107,11 @@ class BasinConfig:
         if self.sampling not in SAMPLINGS:
             raise ConfigError(f"sampling = {self.sampling!r}; choose one of {', '.join(SAMPLINGS)}")
         object.__setattr__(self, "grid", tuple(int(g) for g in self.grid))
-        for name, v, lo in (
-            ("samples", self.samples, 1),
-            ("grid theta", self.grid[0], 1),
-            ("grid thetadot", self.grid[1], 1),
-            ("max_periods", self.max_periods, SETTLE_WINDOW),
+        for name, v, lo in (  # named as the command line spells them
+            ("--starts", self.samples, 1),
+            ("--grid (theta)", self.grid[0], 1),
+            ("--grid (thetadot)", self.grid[1], 1),
+            ("--max-periods", self.max_periods, SETTLE_WINDOW),
             ("round_periods", self.round_periods, 1),
         ):
             if int(v) != v or v < lo:

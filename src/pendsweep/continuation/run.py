@@ -295,6 +295,8 @@ def _start_from_sweep(path: Path, parameter: str, value: float) -> tuple[tuple[f
     df, meta = read_results(path)
     config = meta.get("config", {})
     swept = config.get("parameter")
+    if swept is None:
+        raise ConfigError(f"{str(path)!r} is a {meta.get('kind', 'non-sweep')!r} file, not a sweep to start from")
     if swept != parameter:
         raise ConfigError(f"{str(path)!r} sweeps {swept!r}, not {parameter!r}")
     first = df[(df["direction"] == df["direction"].iloc[0]) & (df["start"] == 0) & (df["status"] == "ok")]
