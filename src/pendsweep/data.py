@@ -261,6 +261,11 @@ def _parse_metadata(meta: Any, name: str) -> tuple[str, ModelParams, float, dict
         params = ModelParams.from_mapping(raw)
     except ParameterError as exc:
         raise ConfigError(f"{name}: {exc}") from None
+    if kind in ("substructured", "rig") and not (params.M > params.M2 and params.C >= params.C2):
+        raise ConfigError(
+            f"{name}: params M = {params.M:g} kg, C = {params.C:g} kg/s must exceed the platform's M2 = "
+            f"{params.M2:g} kg, C2 = {params.C2:g} kg/s (the numerical model's M1 = M - M2 > 0, C1 = C - C2 >= 0)"
+        )
     forcing = _numbers(meta.get("forcing") or {}, "forcing", name)
     unknown = set(forcing) - {"alpha", "fe"}
     if unknown:

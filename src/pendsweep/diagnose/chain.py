@@ -336,8 +336,15 @@ def _by_parts(records: list[Record], method: str) -> bool:
     if method not in ("parts", "closed-loop"):
         raise ConfigError(f"method {method!r}; choose parts or closed-loop")
     kinds = {r.kind for r in records}
-    if method == "parts" and kinds <= {"substructured", "rig"} and all(has_parts(r) for r in records):
-        return True
+    if method == "parts" and kinds <= {"substructured", "rig"}:
+        if all(has_parts(r) for r in records):
+            return True
+        lacking = next(r for r in records if not has_parts(r))
+        missing = [c for c in PART_CHANNELS["transfer"] + PART_CHANNELS["physical"] if c not in lacking.data]
+        raise ConfigError(
+            f"{lacking.name}: no {', '.join(missing)} column: a part-by-part diagnosis needs the load cell and the "
+            "encoder; pass --method closed-loop to replay the whole loop instead"
+        )
     if "rig" in kinds:
         raise ConfigError(f"{records[0].name}: a rig record (a site log) is diagnosed part by part only")
     return False

@@ -532,6 +532,12 @@ def identify_transfer(
     """
     if np.ptp(command) == 0.0:
         raise ConfigError("the command y_cmd is constant: the actuator cannot be identified from it")
+    ratio = float(np.std(measured) / np.std(command))
+    if not 0.2 <= ratio <= 5.0:
+        raise ConfigError(
+            f"the measured displacement y moves {ratio:.3g} x as much as the command y_cmd: check their units "
+            '(declare them in the metadata\'s columns, e.g. {"y_cmd": {"unit": "mm"}})'
+        )
     problem = TransferProblem(t, command, measured)
     fits = {name: problem.identify(name) for name in MODELS}
     best_ms = min(f.error_held_out**2 for f in fits.values())
