@@ -158,15 +158,17 @@ def summarize(rows: list[dict]) -> dict:
     return out
 
 
-def plot(summary: dict, path: Path) -> Path:
-    """Confusion matrix of single-effect and clean records (rows: truth, columns: verdict)."""
+def confusion_figure(
+    confusion: dict[str, dict[str, int]], path: Path, title: str, xlabel: str, ylabel: str, rotation: float = 75
+) -> Path:
+    """A confusion matrix (rows: truth, columns: verdict), shaded by row share and labelled by count."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    truths = sorted(summary["confusion"])
-    verdicts = sorted({v for c in summary["confusion"].values() for v in c} | set(truths))
-    mat = np.array([[summary["confusion"][t].get(v, 0) for v in verdicts] for t in truths], dtype=float)
-    fig = Figure(figsize=(1.0 + 0.55 * len(verdicts), 1.0 + 0.45 * len(truths)))
+    truths = sorted(confusion)
+    verdicts = sorted({v for c in confusion.values() for v in c} | set(truths))
+    mat = np.array([[confusion[t].get(v, 0) for v in verdicts] for t in truths], dtype=float)
+    fig = Figure(figsize=(1.5 + 0.6 * len(verdicts), 1.2 + 0.45 * len(truths)))
     FigureCanvasAgg(fig)
     ax = fig.add_subplot(1, 1, 1)
     ax.imshow(mat / np.maximum(mat.sum(axis=1, keepdims=True), 1), cmap="Blues", vmin=0, vmax=1)
@@ -174,19 +176,24 @@ def plot(summary: dict, path: Path) -> Path:
         for j in range(len(verdicts)):
             if mat[i, j]:
                 ax.text(j, i, int(mat[i, j]), ha="center", va="center", fontsize=7)
-    ax.set_xticks(range(len(verdicts)), verdicts, rotation=75, fontsize=7)
+    ax.set_xticks(range(len(verdicts)), verdicts, rotation=rotation, fontsize=7)
     ax.set_yticks(range(len(truths)), truths, fontsize=7)
-    ax.set_xlabel("verdict")
-    ax.set_ylabel("hidden effect")
-    ax.set_title(
-        f"single recall {summary['single_recall']:.2f}, clean FP {summary['clean_false_positive_rate']:.2f}, "
-        f"OOV flagged {summary['oov_flagged']:.2f}, pairs {summary['pairs_right']:.2f}",
-        fontsize=8,
-    )
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, fontsize=8)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
     return path
+
+
+def plot(summary: dict, path: Path) -> Path:
+    """Confusion matrix of single-effect and clean records (rows: truth, columns: verdict)."""
+    title = (
+        f"single recall {summary['single_recall']:.2f}, clean FP {summary['clean_false_positive_rate']:.2f}, "
+        f"OOV flagged {summary['oov_flagged']:.2f}, pairs {summary['pairs_right']:.2f}"
+    )
+    return confusion_figure(summary["confusion"], path, title, "verdict", "hidden effect")
 
 
 @benchmark("diagnosis")

@@ -173,34 +173,15 @@ def summarize(rows: list[dict]) -> dict:
 
 def plot(summary: dict, path: Path) -> Path:
     """Confusion matrix by part (rows: the part holding the hidden effect, columns: the parts named)."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
+    from .diagnosis import confusion_figure
 
-    conf = summary["confusion_by_part"]
-    truths = sorted(conf)
-    verdicts = sorted({v for c in conf.values() for v in c} | set(truths))
-    mat = np.array([[conf[t].get(v, 0) for v in verdicts] for t in truths], dtype=float)
-    fig = Figure(figsize=(1.5 + 0.9 * len(verdicts), 1.2 + 0.5 * len(truths)))
-    FigureCanvasAgg(fig)
-    ax = fig.add_subplot(1, 1, 1)
-    ax.imshow(mat / np.maximum(mat.sum(axis=1, keepdims=True), 1), cmap="Blues", vmin=0, vmax=1)
-    for i in range(len(truths)):
-        for j in range(len(verdicts)):
-            if mat[i, j]:
-                ax.text(j, i, int(mat[i, j]), ha="center", va="center", fontsize=8)
-    ax.set_xticks(range(len(verdicts)), verdicts, rotation=30, fontsize=8)
-    ax.set_yticks(range(len(truths)), truths, fontsize=8)
-    ax.set_xlabel("part(s) named")
-    ax.set_ylabel("part with the hidden effect")
-    ax.set_title(
+    title = (
         f"servo rigs: clean none {summary['clean_named_none']:.2f}, recall {summary['single_recall']:.2f}, "
-        f"spurious {summary['spurious_second_cause']:.2f}",
-        fontsize=8,
+        f"spurious {summary['spurious_second_cause']:.2f}"
     )
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    return path
+    return confusion_figure(
+        summary["confusion_by_part"], path, title, "part(s) named", "part with the hidden effect", 30
+    )
 
 
 @benchmark("rigs")
