@@ -13,6 +13,7 @@ from typing import Any
 import matplotlib
 import numpy as np
 import pandas as pd
+from matplotlib import patheffects
 from matplotlib.colors import ListedColormap
 from matplotlib.patches import Patch
 
@@ -37,6 +38,10 @@ CLASS_COLOURS = {
     "unsettled": "tab:red",
     "n/a": "black",
 }
+
+
+#: A black outline under a line (a white line readable on dark images and on the white legend).
+_OUTLINED = [patheffects.Stroke(linewidth=3.0, foreground="black"), patheffects.Normal()]
 
 
 def _axis_label(parameter: str) -> str:
@@ -180,7 +185,8 @@ def plot_map(rows: pd.DataFrame, config: MapConfig, boundaries: pd.DataFrame | N
         if boundaries is not None:
             other = [c for c in boundaries.columns if c not in ("analytic", "floquet")][0]
             for col, style, label in (
-                ("analytic", dict(color="white", ls="--", lw=1.5), "Eq. (12)"),
+                # White on the image, outlined in black so that its legend entry shows on white too.
+                ("analytic", dict(color="white", ls="--", lw=1.5, path_effects=_OUTLINED), "Eq. (12)"),
                 ("floquet", dict(color="k", lw=1.0), "Floquet (b1 = b3 = 0)"),
             ):
                 xy = (
