@@ -149,13 +149,10 @@ class PartsDiagnosis:
     def unexplained(self) -> bool:
         return any(d.unexplained for d in self.diagnoses)
 
-    def _pooled(self, attr: str) -> float:
-        """Sample-weighted RMS over the replayed parts of a per-part NRMSE."""
-        weights, squares = [], []
-        for d in self.diagnoses:
-            n = sum(len(rp.eval_idx) * len(rp.channels) for rp in d.problem.replays)
-            weights.append(n)
-            squares.append(getattr(d, attr) ** 2 if attr != "error_before" else d.nominal.error_cv**2)
+    def _pooled(self, error) -> float:
+        """Sample-weighted RMS over the replayed parts of a per-part NRMSE, ``error(diagnosis)``."""
+        weights = [sum(len(rp.eval_idx) * len(rp.channels) for rp in d.problem.replays) for d in self.diagnoses]
+        squares = [error(d) ** 2 for d in self.diagnoses]
         return float(math.sqrt(np.average(squares, weights=weights))) if weights else 0.0
 
     def to_json(self) -> dict[str, Any]:
@@ -181,8 +178,9 @@ class PartsDiagnosis:
             estimate.update(js["estimate"])
             uncertainty.update(js["uncertainty"])
             tied += js["tied_with"]
-        before, after = self._pooled("error_before"), self._pooled("error_after")
-        floor = self._pooled("noise_floor")
+        before = self._pooled(lambda d: d.nominal.error_cv)
+        after = self._pooled(lambda d: d.error_after)
+        floor = self._pooled(lambda d: d.noise_floor)
         excess = before**2 - floor**2
         return {
             "cause": self.cause,

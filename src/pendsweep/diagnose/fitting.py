@@ -12,6 +12,7 @@ from scipy.optimize import least_squares
 from ..errors import ConfigError
 from .effects import CHAIN_PARAMS, EFFECTS, effect
 from .replay import REST_LEVEL_SIGMA, Replay
+from .transfer import lag_of
 
 #: Channels recorded exactly (the controller's own command): no sensor noise to compare with.
 EXACT_CHANNELS = ("y_cmd",)
@@ -192,15 +193,7 @@ def start_value(replay: Replay, eff) -> float:
         # The delay starts from the measured lag of x behind its command (peak of the
         # cross-correlation, refined by a parabola): a start near the optimum saves
         # iterations of the closed-loop replay.
-        x = replay.record.channel("y") - np.mean(replay.record.channel("y"))
-        c = replay.command - np.mean(replay.command)
-        k = max(2, int(0.05 / replay.dt))
-        n = len(x)
-        corr = np.array([float(x[j:] @ c[: n - j]) for j in range(k + 1)])
-        j = int(np.clip(np.argmax(corr), 1, k - 1))
-        den = corr[j - 1] - 2.0 * corr[j] + corr[j + 1]
-        shift = 0.5 * (corr[j - 1] - corr[j + 1]) / den if den < 0 else 0.0
-        return float(max((j + shift) * replay.dt, 0.0))
+        return lag_of(replay.command, replay.record.channel("y"), replay.dt, max_lag=0.05)
     return float(nominal)
 
 

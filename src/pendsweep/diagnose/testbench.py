@@ -47,7 +47,7 @@ import pandas as pd
 from ..data import Record
 from ..errors import ConfigError
 from ..params import FIG9_PO, TABLE_IV, ModelParams
-from .effects import EFFECTS, nominal_values
+from .effects import ACTUATOR_CAUSES, EFFECTS, nominal_values
 from .servo_rig import SERVO_DELAY, SERVO_WN, SERVO_ZETA, Rig, _friction, _tones, predictor_weights, rig_truth
 
 #: Largest truth integration step [s].
@@ -157,14 +157,6 @@ def forced_truth(z, m, l, b, g, M, C, c3, K, k3, gain, amps, freqs, h, nsub, n0,
 # -- records ----------------------------------------------------------------------------------
 
 
-#: Effects of the actuator the benchmark hides (not replay parameters): cause -> meaning.
-ACTUATOR_EFFECTS = {
-    "actuator_delay": "true effective delay [s] (the transport delay grows by the difference)",
-    "servo_bandwidth": "servo natural frequency as a multiple of nominal [-]",
-    "servo_gain": "static gain of the actuator [-]",
-}
-
-
 @dataclass(frozen=True)
 class Case:
     """One generated record.
@@ -225,7 +217,7 @@ def generate(case: Case) -> Record:
     nominal = nominal_for(kind)
     truth = nominal_values(nominal)
     for cause, value in case.effects.items():
-        if cause in ACTUATOR_EFFECTS and kind == "substructured":
+        if cause in ACTUATOR_CAUSES and kind == "substructured":
             continue  # set on the rig below
         eff = EFFECTS[cause]
         if kind not in eff.kinds:

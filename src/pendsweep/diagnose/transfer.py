@@ -248,7 +248,7 @@ class TransferProblem:
         parity = ((self.idx - start) // block) % 2
         self.halves = [self.idx[parity == 0], self.idx[parity == 1]]
         self.noise = noise_std(self.measured)
-        self.start_tau = _lag_of(self.command, self.measured, self.dt)
+        self.start_tau = lag_of(self.command, self.measured, self.dt)
 
     def motion(self, actuator: Actuator, per_sample: int = 1, initial: np.ndarray | None = None) -> np.ndarray:
         """Rows of platform x, x', x'' (``per_sample`` rows per sample step).
@@ -436,11 +436,12 @@ def _covariance(res, name: str, values: dict[str, float]) -> np.ndarray:
     return cov
 
 
-def _lag_of(command: np.ndarray, measured: np.ndarray, dt: float) -> float:
-    """Lag of ``measured`` behind ``command`` [s]: peak of their cross-correlation (to 0.2 s), refined by a parabola."""
+def lag_of(command: np.ndarray, measured: np.ndarray, dt: float, max_lag: float = 0.2) -> float:
+    """Lag of ``measured`` behind ``command`` [s]: the peak of their cross-correlation up to ``max_lag``
+    (and a quarter of the record), refined by a parabola."""
     x = measured - np.mean(measured)
     c = command - np.mean(command)
-    k = max(2, min(int(0.2 / dt), len(x) // 4))
+    k = max(2, min(int(max_lag / dt), len(x) // 4))
     n = len(x)
     corr = np.array([float(x[j:] @ c[: n - j]) for j in range(k + 1)])
     j = int(np.clip(np.argmax(corr), 1, k - 1))
