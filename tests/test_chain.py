@@ -20,7 +20,7 @@ from click.testing import CliRunner
 
 from pendsweep.cli import main
 from pendsweep.data import Record, read_record, write_record
-from pendsweep.diagnose.chain import diagnose_records, judge_transfer
+from pendsweep.diagnose.chain import BANDWIDTH_TOLERANCE, diagnose_records, judge_transfer
 from pendsweep.diagnose.testbench import TEST_SEEDS, Case, Rig, generate
 from pendsweep.diagnose.transfer import Actuator, identify_transfer, servo_propagator
 from pendsweep.errors import ConfigError
@@ -115,6 +115,21 @@ def test_a_slower_servo_than_described_is_named_servo_bandwidth():
     # Described only by its delay (a pure-delay nominal), the same rig is an effective-delay error.
     plain = judge_transfer(identify_transfer(t, cmd, measured, 2.2, Actuator(0, nominal.effective_delay(2.2))))
     assert plain["causes"] == ["actuator_delay"]
+
+
+@pytest.mark.parametrize("order, hz", [(2, 40.0), (1, 20.0)])
+@pytest.mark.parametrize("effect", [{"servo_bandwidth": 0.35}, {"actuator_delay": 0.0135}])
+def test_a_delay_and_a_slower_servo_the_record_cannot_separate_are_tied(order, hz, effect):
+    """A described servo, slowed or delayed: at 2.2 Hz both lag alike, so the verdict is a tie with both estimates."""
+    rig = Rig(servo_order=order, servo_hz=hz, describes_servo=True)
+    _, js = verdict(servo_case(effect, rig=rig))
+    assert js["cause"] == "actuator_delay" and js["tied_with"] == ["servo_bandwidth"], js["cause"]
+    tied_rate = js["parts"]["transfer"]["tied_with"]["servo_bandwidth"]["rate"]
+    nominal = 2 * math.pi * hz
+    if "servo_bandwidth" in effect:  # the alternative explanation is the truth: its rate is the rig's
+        assert tied_rate == pytest.approx(effect["servo_bandwidth"] * nominal, rel=0.05)
+    else:  # a slower servo would explain the extra delay only at a rate well below the nominal's
+        assert tied_rate < (1.0 - BANDWIDTH_TOLERANCE) * nominal
 
 
 # -- the parts on independent servo rigs ---------------------------------------------------------------------

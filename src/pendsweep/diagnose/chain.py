@@ -24,10 +24,13 @@ Actuator verdicts (step 1), against the nominal actuator (the record's
     from the nominal's by more than :data:`DELAY_TOLERANCE` and by more than
     ``Z_MIN`` of its uncertainty;
 ``servo_bandwidth``
-    instead of ``actuator_delay``, when the nominal actuator is a
-    second-order servo, the second-order model is selected, its transport
-    delay agrees with the nominal's (within the same tolerances) and its
-    natural frequency does not (by :data:`BANDWIDTH_TOLERANCE` and ``Z_MIN``);
+    instead of ``actuator_delay``, when the nominal actuator is a servo, a
+    servo of its order is selected, its transport delay agrees with the
+    nominal's (within the same tolerances) and its rate does not (by
+    :data:`BANDWIDTH_TOLERANCE` and ``Z_MIN``); where the selected model does
+    not separate the two (a simpler model, or both or neither off), the
+    verdict is ``actuator_delay`` tied with ``servo_bandwidth``, whose
+    estimate is :func:`bandwidth_for_delay`;
 ``servo_gain``
     the static gain differs from the nominal's by more than
     :data:`GAIN_TOLERANCE` and ``Z_MIN`` of its uncertainty.
@@ -44,6 +47,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from scipy.optimize import brentq
 
 from ..data import Record
 from ..errors import ConfigError
@@ -52,7 +56,7 @@ from .effects import ACTUATOR_CAUSES, PART_OF
 from .fit import DIAGNOSIS_BYTES_PER_SAMPLE, FIT_EVALUATIONS, Diagnosis, diagnose
 from .parts import NumericalReplay, PhysicalReplay, physical_substeps
 from .thresholds import BEAM, PARTNERS, Z_MIN
-from .transfer import TransferIdentification, dominant_frequency, identify_transfer, nominal_actuator
+from .transfer import Actuator, TransferIdentification, dominant_frequency, identify_transfer, nominal_actuator
 
 #: Largest difference of effective delay at the forcing frequency that is a convention, not a fault [s].
 DELAY_TOLERANCE = 1.5e-3
@@ -88,21 +92,53 @@ def judge_transfer(ident: TransferIdentification) -> dict[str, Any]:
                  "differs": differs(gain - nominal.gain, gain_sigma, GAIN_TOLERANCE)},
     }  # fmt: skip
     named: dict[str, tuple[str, float, float]] = {}
+    tied: dict[str, tuple[str, float]] = {}
     if tests["effective_delay"]["differs"]:
         named["actuator_delay"] = ("tau", delay, delay_sigma)
-        if nominal.order == 2 and best.actuator.order == 2:
+        # Whether the selected model tells a longer transport delay from a slower servo: only a
+        # servo of the nominal's order, with one of the two as nominal, does.
+        separated = False
+        if nominal.order >= 1 and best.actuator.order == nominal.order:
             rate, rate_sigma = best.actuator.rate, best.stderr["rate"]
             transport_same = not differs(best.actuator.tau - nominal.tau, best.stderr["tau"], DELAY_TOLERANCE)
             rate_differs = differs((rate - nominal.rate) / nominal.rate, rate_sigma / nominal.rate, BANDWIDTH_TOLERANCE)
             tests["bandwidth"] = {"estimate": rate, "nominal": nominal.rate, "uncertainty": rate_sigma,
                                   "tolerance": BANDWIDTH_TOLERANCE, "transport_delay_as_nominal": transport_same,
                                   "differs": rate_differs}  # fmt: skip
+            separated = transport_same == rate_differs
             if transport_same and rate_differs:
                 del named["actuator_delay"]
                 named["servo_bandwidth"] = ("rate", rate, rate_sigma)
+        if nominal.order >= 1 and not separated:
+            # The record holds too little above the forcing to say which changed: a tie, with the
+            # nominal servo's rate that gives the same effective delay as the alternative.
+            rate = bandwidth_for_delay(nominal, f, delay)
+            if rate is not None:
+                tied["servo_bandwidth"] = ("rate", rate)
     if tests["gain"]["differs"]:
         named["servo_gain"] = ("gain_servo", gain, gain_sigma)
-    return {"causes": sorted(named), "estimates": named, "tests": tests}
+    return {"causes": sorted(named), "estimates": named, "tied_with": tied, "tests": tests}
+
+
+def bandwidth_for_delay(nominal: Actuator, f: float, delay: float) -> float | None:
+    """The rate of the nominal servo (its transport delay kept) whose effective delay at ``f`` is ``delay``.
+
+    The alternative explanation of a longer effective delay; None when no slower servo of the
+    nominal's order reaches it (its phase lag is bounded: 90 deg for the first order, 180 for the second).
+    """
+
+    w = 2.0 * math.pi * f
+
+    def excess(log_rate: float) -> float:
+        # The servo's phase lag on its continuous branch (no wrapping): 0 to 90 or 180 deg.
+        rate = math.exp(log_rate)
+        lag = math.atan2(w, rate) if nominal.order == 1 else math.atan2(2.0 * nominal.zeta * rate * w, rate**2 - w**2)
+        return nominal.tau + lag / w - delay
+
+    low, high = math.log(w * 1e-3), math.log(max(nominal.rate, w) * 1e3)
+    if not excess(low) > 0.0 > excess(high):
+        return None
+    return math.exp(brentq(excess, low, high, xtol=1e-10))
 
 
 @dataclass
@@ -167,8 +203,9 @@ class PartsDiagnosis:
             for name, value, sigma in verdict["estimates"].values():
                 key = name if len(self.transfers) == 1 else f"{name}@{len(transfer) - 1}"
                 estimate[key], uncertainty[key] = value, sigma
+            entry["tied_with"] = {cause: {name: value} for cause, (name, value) in verdict["tied_with"].items()}
         parts["transfer"] = transfer[0] if len(transfer) == 1 else transfer
-        tied: list[str] = []
+        tied: list[str] = [c for v in self.transfer_verdicts for c in v["tied_with"]]
         for name, d in (("physical", self.physical), ("numerical", self.numerical)):
             if d is None:
                 parts[name] = {"cause": "not replayed", "reason": self.skipped[name]}

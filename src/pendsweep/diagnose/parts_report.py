@@ -106,6 +106,11 @@ def write_parts_report(diag: PartsDiagnosis, outdir: Path, source: str) -> list[
             f"Effective delay at {ident.frequency:g} Hz: {1e3 * eff:.3f} +- {1e3 * sigma:.3f} ms "
             f"(nominal {1e3 * ident.nominal.effective_delay(ident.frequency):.3f} ms); "
             f"LVDT noise {1e6 * ident.noise:.1f} um. Actuator verdict: `{'+'.join(verdict['causes']) or 'none'}`.",
+            *(
+                f"Not distinguishable on this record from `{cause}` ({name} = {value:.5g} {UNITS[name].split(' ')[0]}, the "
+                "nominal transport delay kept): the command holds too little above the forcing to tell them apart."
+                for cause, (name, value) in verdict["tied_with"].items()
+            ),
             "",
             "| model | "
             + " | ".join(f"{k} [{UNITS[k].split(' ')[0]}]" for k in MODELS["second_order"][1])
