@@ -52,6 +52,7 @@ from .kernels._layout import (
     REC_Y_ABSMAX,
     REC_Y_SEC,
 )
+from .kernels._settle import settle_check
 from .params import ENCODER_RESOLUTION
 
 #: Largest normalised section mismatch of a repeat [~rad]; the classifier's periodic tolerance.
@@ -146,21 +147,6 @@ def section_scales_many(records: np.ndarray, omega_e, omega_p) -> np.ndarray:
     return np.stack([Y, omega_e * Y, np.ones(k), np.broadcast_to(omega_p, (k,))], axis=1)
 
 
-def repeat_mask(records: np.ndarray, scales: np.ndarray, n: int, tol: float) -> np.ndarray:
-    """``mask[i, j]``: run i's section after period ``j + n`` matches the one after period ``j``.
-
-    Matching means every normalised component within ``tol`` (theta wrapped)
-    and the same number of turns in both periods. ``records`` is
-    ``(k, periods, 8)``, ``scales`` ``(k, 1, 4)`` or ``(k, 4)``; returns
-    bool ``(k, periods - n)``.
-    """
-    sc = np.asarray(scales, dtype=np.float64)
-    sc = sc[:, None, :] if sc.ndim == 2 else sc
-    sections, rotations = records[:, :, _SEC], records[:, :, REC_ROTATIONS]
-    mismatch = np.abs(section_difference(sections[:, n:], sections[:, :-n], sc)).max(axis=2)
-    return (mismatch < tol) & (rotations[:, n:] == rotations[:, :-n])
-
-
 def settling(
     records: np.ndarray,
     scales: np.ndarray,
@@ -206,63 +192,20 @@ def settling(
         ``ambiguous`` rather than settled on ``n`` while the d-repeat
         mismatch is within ``AMBIGUITY_FACTOR * tol``.
     """
-    rec = np.asarray(records, dtype=np.float64)
+    rec = np.ascontiguousarray(records, dtype=np.float64)
     single = rec.ndim == 2
     if single:
         rec = rec[None]
-    k, periods, _ = rec.shape
+    k = rec.shape[0]
     if window < 2 * max_period + 1:
         raise ValueError(f"window = {window} must be >= 2 * max_period + 1 = {2 * max_period + 1}")
-    sc = np.broadcast_to(np.asarray(scales, dtype=np.float64), (k, 4))[:, None, :]
-    settled = np.zeros(k, dtype=bool)
-    period = np.zeros(k, dtype=np.int64)
-    turns = np.zeros(k, dtype=np.int64)
-    onset = np.full(k, -1, dtype=np.int64)
-    at_rest = np.zeros(k, dtype=bool)
-    if periods < window:
-        return Settling(settled, period, turns, onset, at_rest, np.zeros(k, dtype=bool))
-    sections = rec[:, :, _SEC]
-    rotations = rec[:, :, REC_ROTATIONS]
-    first = periods - window  # first row of the window
-
-    def repeats(rows: np.ndarray, n: int, start: int) -> np.ndarray:
-        return repeat_mask(rec[rows, start:], sc[rows], n, tol)
-
-    deferred = np.zeros(k, dtype=bool)
-    for n in range(1, max_period + 1):
-        candidates = np.flatnonzero(~settled & ~deferred)
-        if candidates.size == 0:
-            break
-        new = candidates[repeats(candidates, n, first).all(axis=1)]
-        # A run spiralling slowly into a shorter cycle d | n repeats after n periods before it
-        # repeats after d: wait for d unless the d-repeat is clearly broken.
-        for d in (d for d in range(1, n) if n % d == 0):
-            if new.size:
-                a, b = sections[new, first + d :], sections[new, first : periods - d]
-                near = np.abs(section_difference(a, b, sc[new])).max(axis=(1, 2)) < AMBIGUITY_FACTOR * tol
-                deferred[new[near]] = True
-                new = new[~near]
-        if new.size == 0:
-            continue
-        settled[new] = True
-        period[new] = n
-        # Start of the repeating stretch that ends at the record's end (searched over the whole record).
-        broken = ~repeats(new, n, 0)
-        last_break = np.where(broken.any(axis=1), broken.shape[1] - 1 - np.argmax(broken[:, ::-1], axis=1), -1)
-        onset[new] = last_break + 1
-        turns[new] = np.rint(rotations[new, periods - n :].sum(axis=1)).astype(np.int64)
-    if periods >= rotation_window:
-        tail = rotations[:, periods - rotation_window :]
-        steady = ~settled & ~deferred & (tail == tail[:, -1:]).all(axis=1) & (tail[:, -1] != 0)
-        steady_rows = np.flatnonzero(steady)
-        if steady_rows.size:
-            settled[steady_rows] = True
-            turns[steady_rows] = np.rint(rotations[steady_rows, -1]).astype(np.int64)
-            changed = rotations[steady_rows] != rotations[steady_rows, -1:]
-            onset[steady_rows] = np.where(changed.any(axis=1), periods - np.argmax(changed[:, ::-1], axis=1), 0)
-    swing = np.fmax.reduce(rec[:, first:, REC_THETA_ABSMAX], axis=1)  # NaN rows ignored
-    at_rest = settled & (swing < rest_threshold)
-    return Settling(settled, period, turns, onset, at_rest, deferred & ~settled)
+    sc = np.ascontiguousarray(np.broadcast_to(np.asarray(scales, dtype=np.float64), (k, 4)))
+    out = np.empty((k, 6), dtype=np.int64)
+    settle_check(rec, sc, tol, window, max_period, rest_threshold, rotation_window, AMBIGUITY_FACTOR, out)
+    return Settling(
+        out[:, 0].astype(bool), out[:, 1].copy(), out[:, 2].copy(), out[:, 3].copy(),
+        out[:, 4].astype(bool), out[:, 5].astype(bool),
+    )  # fmt: skip
 
 
 @dataclass(frozen=True)

@@ -9,17 +9,11 @@ from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
-from ..attractors import (
-    MATCH_TOL,
-    ROTATION_WINDOW,
-    SETTLE_WINDOW,
-    repeat_mask,
-    section_scales_many,
-    settling,
-)
+from ..attractors import MATCH_TOL, ROTATION_WINDOW, SETTLE_WINDOW, section_scales_many, settling
 from ..classify import MAX_PERIOD
 from ..kernels import STATUS_DIVERGED, STATUS_OK, STATUS_UNSTABLE
 from ..kernels._layout import REC_THETA_ABSMAX, REC_THETADOT_SEC, REC_Y_SEC
+from ..kernels._settle import update_near_since
 from ..params import ModelParams
 from ..status import Status
 
@@ -261,15 +255,8 @@ def settle_runs(
         done += periods
         states[active] = new_states
         out.periods_done[active] = done
-        scales = system.scales_for(ids[active], buffer[:, -window:])
-        for n in range(1, max_period + 1):
-            recent = buffer[:, -(periods + n) :]  # the pairs whose later section is in this round
-            near = repeat_mask(recent, scales, n, MATCH_TOL)
-            broken = ~near
-            any_break = broken.any(axis=1)
-            last_break = near.shape[1] - 1 - np.argmax(broken[:, ::-1], axis=1)
-            pair_first = first_row + buffer.shape[1] - recent.shape[1]  # row of column 0's earlier section
-            near_since[active[any_break], n - 1] = pair_first + last_break[any_break] + 1
+        scales = np.ascontiguousarray(system.scales_for(ids[active], buffer[:, -window:]))
+        update_near_since(buffer, scales, periods, first_row, MATCH_TOL, near_since, active)
         found = settling(buffer, scales, **settle_options)
         failed = status != 0
         last = done >= max_periods
