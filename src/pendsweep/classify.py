@@ -50,6 +50,18 @@ standard error comes from means over blocks of :data:`LYAP_BLOCK` periods,
 which absorbs the samples' short-range correlation. Backends with more
 state than ``(y, ydot, theta, thetadot)`` restart their own states from
 rest at the section, an approximation.
+
+Staged evidence (:func:`classify_runs`' default): a record with rotations
+gets the Lyapunov pair alone (it is ``rotating`` or ``chaotic``, which
+only the exponent tells apart). A swinging record is extended in rounds of
+:data:`EXTEND_ROUND` periods, up to :data:`EXTEND_PERIODS`. After each
+round, a point whose last :data:`TAIL_PERIODS` extension sections repeat
+(:func:`section_period`) stops and is ``transient``, without a Lyapunov
+pair. Only extensions that never repeat get the pair. ``evidence="full"``
+runs the whole extension and the pair for every undecided point. The two
+differ only on a chaotic transient that settles within the extension:
+full calls it ``chaotic`` (from the record's exponent), staged calls it
+``transient``.
 """
 
 from __future__ import annotations
