@@ -195,6 +195,9 @@ def test_batched_evidence_gives_the_labels_of_point_by_point_evidence():
         def run_point(self, *args):
             return backend.run_point(*args)
 
+        def run_points(self, params, states, transient, record):  # the contract's point-by-point fallback
+            return [backend.run_point(q, x, transient, record) for q, x in zip(params, states)]
+
         def initial_state(self, *args):
             return backend.initial_state(*args)
 
@@ -219,3 +222,55 @@ def test_batched_evidence_gives_the_labels_of_point_by_point_evidence():
             # The batched kernel's last bits differ (sincos_poly, reciprocals) and the CO point's
             # chaotic transient amplifies them: the estimates agree far inside their own error.
             assert abs(f.lyapunov - s.lyapunov) < 0.01 * s.lyapunov_err
+
+
+def fresh_dense_sweep_points(indices):
+    """Points (in ascending alpha) of the dense fresh sweep (alpha 0-45 N in steps of 0.05 N, fe = 2.5 Hz, M = 10.9 kg,
+    100 + 20 periods from theta = 0.1 rad) by index: chaotic ones depend on alpha's last bits."""
+    from pendsweep.sweep import value_range
+
+    backend = make_backend("emulated")
+    alphas = value_range(0.0, 45.0, 0.05)[list(indices)]
+    config = SweepConfig(parameter="alpha", values=tuple(alphas), model={"fe": 2.5, "M": 10.9}, mode="fresh")
+    params = [config.params_at(a) for a in config.values]
+    states = np.array([backend.initial_state(q, *config.initial) for q in params])
+    return backend, params, backend.run_points(params, states, 100, 20)
+
+
+def test_staged_evidence_labels_chaotic_points_as_full_evidence_does():
+    """Chaotic points of the dense fresh sweep: tumbling ones (Lyapunov pair alone) and swinging ones
+    (an extension that never repeats, then the pair) keep their label with staged evidence."""
+    from pendsweep.classify import EXTEND_PERIODS, classify_runs
+
+    # 38.1, 41.6 and 44.9 N tumble in the record; 42.3, 42.6 and 43.7 N swing.
+    backend, params, runs = fresh_dense_sweep_points([762, 832, 846, 852, 874, 898])
+    full = classify_runs(backend, params, runs, evidence="full")
+    staged = classify_runs(backend, params, runs, evidence="staged")
+    assert [m.label for m in full] == ["chaotic"] * 6
+    assert [m.label for m in staged] == [m.label for m in full]
+    assert [m.lyapunov for m in staged] == [m.lyapunov for m in full]  # the same pair, bit for bit
+    assert [m.extension_periods for m in staged] == [0, 0] + [EXTEND_PERIODS] * 3 + [0]
+    assert all(m.lyapunov_pair for m in staged)
+
+
+def test_staged_evidence_calls_transient_chaos_that_settles_transient():
+    """The one label of the dense fresh sweep that staged evidence changes: at 43.05 N the
+    record is a chaotic transient whose section repeats within the extension; full evidence
+    says chaotic (the record's Lyapunov exponent), staged evidence stops at the repeat."""
+    from pendsweep.classify import classify_runs
+
+    backend, params, runs = fresh_dense_sweep_points([861])  # 43.05 N
+    (full,) = classify_runs(backend, params, runs, evidence="full")
+    (staged,) = classify_runs(backend, params, runs, evidence="staged")
+    assert (full.label, staged.label) == ("chaotic", "transient")
+    assert not staged.lyapunov_pair and 0 < staged.extension_periods <= 200
+
+
+def test_evidence_mode_is_checked():
+    from pendsweep.classify import classify_runs
+    from pendsweep.errors import ConfigError
+
+    with pytest.raises(ValueError, match="evidence"):
+        classify_runs(make_backend("emulated"), [], [], evidence="some")
+    with pytest.raises(ConfigError, match="evidence"):
+        SweepConfig(parameter="alpha", values=(1.0,), evidence="some")

@@ -1,5 +1,6 @@
 """Sweep planner: ranges, modes, directions, parallelism, crash-safe resume."""
 
+import dataclasses
 import json
 import os
 import signal
@@ -240,3 +241,17 @@ def test_adaptive_transient_reaches_what_a_long_fixed_transient_reaches():
     assert (first["transient_periods_used"] < 1000).all()
     assert first["transient_periods_used"].iloc[-1] < 100  # the period-2 orbit settles before the paper's 100
     assert (short.groupby("point").first()["motion"] == "transient").any()  # what auto resolves
+
+
+@pytest.mark.parametrize("name", ["fig11a", "fig11b"])
+def test_staged_evidence_gives_the_labels_of_full_evidence_on_fig11(name):
+    """The classifier's staged evidence (extensions that stop at a repeat, the Lyapunov pair only
+    where still undecided) labels every point of the paper's Fig. 11 sweeps as the full evidence does."""
+    from pendsweep.sweepfile import load_sweep
+
+    config = load_sweep(name).config
+    staged = run_sweep(config)
+    full = run_sweep(dataclasses.replace(config, evidence="full"))
+    assert config.evidence == "staged"
+    assert staged["motion"].tolist() == full["motion"].tolist()
+    assert "transient" in set(staged["motion"])  # points the evidence had to decide

@@ -50,13 +50,25 @@ standard error comes from means over blocks of :data:`LYAP_BLOCK` periods,
 which absorbs the samples' short-range correlation. Backends with more
 state than ``(y, ydot, theta, thetadot)`` restart their own states from
 rest at the section, an approximation.
+
+Staged evidence (:func:`classify_runs`' default): a record with rotations
+gets the Lyapunov pair alone (it is ``rotating`` or ``chaotic``, which
+only the exponent tells apart). A swinging record is extended in rounds of
+:data:`EXTEND_ROUND` periods, up to :data:`EXTEND_PERIODS`. After each
+round, a point whose last :data:`TAIL_PERIODS` extension sections repeat
+(:func:`section_period`) stops and is ``transient``, without a Lyapunov
+pair. Only extensions that never repeat get the pair. ``evidence="full"``
+runs the whole extension and the pair for every undecided point. The two
+differ only on a chaotic transient that settles within the extension:
+full calls it ``chaotic`` (from the record's exponent), staged calls it
+``transient``.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -82,6 +94,13 @@ LYAP_SIGMAS = 3.0
 LYAP_FLOOR = 0.01
 #: Periods simulated past the record to look for closed curves or late settling.
 EXTEND_PERIODS = 200
+#: Staged evidence: the extension runs in rounds of this many periods, and a
+#: point stops after the round in which its section repeats [forcing periods].
+EXTEND_ROUND = 25
+#: Sections at the end of an extension tested for a late repeat [forcing periods].
+TAIL_PERIODS = 4 * MAX_PERIOD
+#: How much evidence :func:`classify_runs` gathers (module docstring, "Staged evidence").
+EVIDENCE_MODES = ("staged", "full")
 #: Smallest oscillator amplitude a section is normalised by [m]: an unforced
 #: oscillator decaying to rest would otherwise be measured against its own
 #: vanishing amplitude and never repeat (1 nm is far below any displacement sensor).
@@ -119,13 +138,20 @@ class Motion:
         n of ``periodic-n`` (or of a periodic rotation), else 0.
     lyapunov, lyapunov_err : float
         Largest Lyapunov exponent and its standard error [1/forcing period]
-        (NaN when not needed: semi-trivial and periodic points).
+        (NaN when not needed: semi-trivial and periodic points, and those
+        whose staged extension repeats).
+    extension_periods : int
+        Periods simulated past the record for this label [forcing periods].
+    lyapunov_pair : bool
+        Whether the two-trajectory Lyapunov pair was run for this label.
     """
 
     label: str
     period: int = 0
     lyapunov: float = math.nan
     lyapunov_err: float = math.nan
+    extension_periods: int = 0
+    lyapunov_pair: bool = False
 
 
 @dataclass(frozen=True)
@@ -165,13 +191,35 @@ def section_period(sections: np.ndarray, scales: np.ndarray, tol: float = PERIOD
     ``sections`` is ``(n_periods, 4)``; at least two repeats of the n-cycle
     are required.
     """
+    return int(section_periods(sections[None], np.asarray(scales)[None], tol)[0])
+
+
+def section_periods(sections: np.ndarray, scales: np.ndarray, tol: float = PERIODIC_TOL) -> np.ndarray:
+    """:func:`section_period` of many equally long section records at once.
+
+    Parameters
+    ----------
+    sections : float64[k, n_periods, >= 4]
+        Section states ``(y [m], ydot [m/s], theta [rad], thetadot [rad/s])`` per record.
+    scales : float64[k, 4]
+        Their normalisations (:func:`section_scales`).
+    tol : float
+        Largest normalised mismatch of a repeat [~rad].
+
+    Returns
+    -------
+    int64[k]
+        Smallest repeating n <= :data:`MAX_PERIOD` per record (0: none).
+    """
+    k, n_periods = sections.shape[:2]
+    period = np.zeros(k, dtype=np.int64)
+    divisors = np.asarray(scales, dtype=np.float64)[:, None, :]
     for n in range(1, MAX_PERIOD + 1):
-        if sections.shape[0] < 2 * n + 1:
+        if n_periods < 2 * n + 1:
             break
-        mismatch = np.abs(section_difference(sections[n:], sections[:-n], scales)).max()
-        if mismatch < tol:
-            return n
-    return 0
+        mismatch = np.abs(section_difference(sections[:, n:], sections[:, :-n], divisors)).max(axis=(1, 2))
+        period[(period == 0) & (mismatch < tol)] = n
+    return period
 
 
 def lyapunov_estimate(log_stretch: np.ndarray, block: int = LYAP_BLOCK) -> tuple[float, float]:
@@ -277,8 +325,7 @@ def classify_with_evidence(records: np.ndarray, scales: np.ndarray, ev: Evidence
         return Motion("chaotic", 0, lle, err)
     if np.any(records[:, REC_ROTATIONS] != 0):
         return Motion("rotating", 0, lle, err)
-    tail = ev.sections[-4 * MAX_PERIOD :]
-    if section_period(tail, scales) or (lle < -LYAP_SIGMAS * err and lle < -LYAP_FLOOR):
+    if section_period(ev.sections[-TAIL_PERIODS:], scales) or (lle < -LYAP_SIGMAS * err and lle < -LYAP_FLOOR):
         return Motion("transient", 0, lle, err)
     if closed_curve(ev.sections, scales):
         return Motion("quasi-periodic", 0, lle, err)
@@ -307,11 +354,19 @@ def classify_records(
 
 
 def backend_evidence(
-    backend, params: ModelParams, run: PointRun, scales: np.ndarray, rest_threshold: float = ENCODER_RESOLUTION
+    backend,
+    params: ModelParams,
+    run: PointRun,
+    scales: np.ndarray,
+    rest_threshold: float = ENCODER_RESOLUTION,
+    extend_periods: int = EXTEND_PERIODS,
 ) -> Evidence:
-    """Extend the record and estimate the Lyapunov exponent with the point's backend."""
-    extension = backend.run_point(params, run.state, 0, EXTEND_PERIODS)
-    sections = extension.records[:, _SEC] if extension.status is Status.OK else np.empty((0, 4))
+    """Extend the record by ``extend_periods`` (0: no extension) and estimate the Lyapunov exponent, point by point."""
+    sections = np.empty((0, 4))
+    if extend_periods:
+        extension = backend.run_point(params, run.state, 0, extend_periods)
+        if extension.status is Status.OK:
+            sections = extension.records[:, _SEC]
 
     def advance(state: np.ndarray) -> tuple[np.ndarray, float]:
         one = backend.run_point(params, state, 0, 1)
@@ -324,22 +379,124 @@ def backend_evidence(
     )
 
 
-def classify_run(backend, params: ModelParams, run: PointRun, rest_threshold: float = ENCODER_RESOLUTION) -> Motion:
-    """Classify a finished sweep point, re-simulating with its backend when needed."""
-    return classify_runs(backend, [params], [run], rest_threshold)[0]
+def gather_evidence(
+    backend,
+    params: Sequence[ModelParams],
+    runs: Sequence[PointRun],
+    scales: Sequence[np.ndarray],
+    rest_threshold: float = ENCODER_RESOLUTION,
+    extend_periods: int = EXTEND_PERIODS,
+) -> list[Evidence]:
+    """The :class:`Evidence` of many points: an ``extend_periods`` extension (0: none) and a Lyapunov pair each.
+
+    A batched backend (``backend.batched``) integrates every point's
+    extension and Lyapunov twin in one launch (its ``evidence_many``);
+    others re-simulate point by point through :func:`backend_evidence`.
+    ``rest_threshold`` [rad] is the run's "at rest" limit (:func:`at_rest`).
+    """
+    if not runs:
+        return []
+    if not backend.batched:
+        return [
+            backend_evidence(backend, q, r, s, rest_threshold, extend_periods) for q, r, s in zip(params, runs, scales)
+        ]
+    found = backend.evidence_many(
+        list(params),
+        np.array([r.state[:4] for r in runs]),
+        np.array([r.records[0, _SEC] for r in runs]),
+        np.array(scales),
+        extend_periods=extend_periods,
+        lyapunov_periods=max(runs[0].records.shape[0], LYAP_MIN_PERIODS),
+        d0=LYAP_D0,
+        rest=rest_threshold,
+    )
+    return [Evidence(sections, stretch) for sections, stretch in found]
+
+
+def staged_extension(
+    backend, params: Sequence[ModelParams], runs: Sequence[PointRun], scales: Sequence[np.ndarray]
+) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
+    """Extend records in rounds of :data:`EXTEND_ROUND` periods, each until its section repeats.
+
+    After every round a point whose last :data:`TAIL_PERIODS` extension
+    sections repeat (:func:`section_period`, the classifier's own test and
+    tolerance) stops; the others go on, up to :data:`EXTEND_PERIODS`, so an
+    extension that never repeats is the full one, period for period.
+
+    Returns
+    -------
+    sections : list of float64[m, 4]
+        Each point's extension sections (empty when the extension diverged,
+        as in :func:`gather_evidence`).
+    repeated : bool[k]
+        Whether the section repeated within :data:`EXTEND_PERIODS`.
+    periods : int64[k]
+        Extension periods integrated per point [forcing periods].
+    """
+    k = len(runs)
+    pieces: list[list[np.ndarray]] = [[] for _ in range(k)]
+    states = [r.state for r in runs]
+    repeated = np.zeros(k, dtype=bool)
+    periods = np.zeros(k, dtype=np.int64)
+    divisors = np.array(scales, dtype=np.float64).reshape(k, 4)
+    active = np.arange(k)
+    done = 0
+    while active.size and done < EXTEND_PERIODS:
+        length = min(EXTEND_ROUND, EXTEND_PERIODS - done)
+        rounds = backend.run_points([params[j] for j in active], np.array([states[j] for j in active]), 0, length)
+        done += length
+        periods[active] = done
+        going = []
+        for j, extension in zip(active, rounds):
+            if extension.status is Status.OK:
+                pieces[j].append(extension.records[:, _SEC])
+                states[j] = extension.state
+                going.append(j)
+            else:
+                pieces[j] = []  # a diverged extension shows nothing (as a full one that diverges)
+        active = np.array(going, dtype=np.int64)
+        if active.size:  # every active extension is ``done`` periods long: one array
+            tails = np.stack([np.concatenate(pieces[j])[-TAIL_PERIODS:] for j in active])
+            repeats = section_periods(tails, divisors[active]) > 0
+            repeated[active[repeats]] = True
+            active = active[~repeats]
+    sections = [np.concatenate(p) if p else np.empty((0, 4)) for p in pieces]
+    return sections, repeated, periods
 
 
 def classify_runs(
-    backend, params: Sequence[ModelParams], runs: Sequence[PointRun], rest_threshold: float = ENCODER_RESOLUTION
+    backend,
+    params: Sequence[ModelParams],
+    runs: Sequence[PointRun],
+    rest_threshold: float = ENCODER_RESOLUTION,
+    evidence: str = "staged",
 ) -> list[Motion]:
     """Classify finished points; the evidence of all undecided ones is computed together.
 
-    A batched backend (``backend.batched``) integrates every undecided
-    point's extension and Lyapunov twin in one launch (its
-    ``evidence_many``); others re-simulate point by point through
-    :func:`backend_evidence`. ``rest_threshold`` [rad] is the run's "at
-    rest" limit (:func:`at_rest`), in both paths.
+    Parameters
+    ----------
+    backend
+        The points' backend; evidence is re-simulated with it
+        (:func:`gather_evidence`, :func:`staged_extension`).
+    params, runs : sequences of the same length
+        The points' parameters and finished runs.
+    rest_threshold : float
+        The run's "at rest" limit [rad] (:func:`at_rest`).
+    evidence : {"staged", "full"}
+        ``full``: every undecided point gets the whole :data:`EXTEND_PERIODS`
+        extension and a Lyapunov pair. ``staged`` (module docstring): a
+        record with rotations gets the Lyapunov pair alone, a swinging one
+        an extension in rounds that stops once its section repeats
+        (``transient``), and only points whose extension never repeats get
+        the pair.
+
+    Returns
+    -------
+    list of Motion
+        With ``extension_periods`` and ``lyapunov_pair`` telling the evidence each point needed.
     """
+    if evidence not in EVIDENCE_MODES:
+        raise ValueError(f"evidence = {evidence!r}; choose one of {', '.join(EVIDENCE_MODES)}")
     scales = [section_scales(r.records, q) if r.status is Status.OK else np.ones(4) for q, r in zip(params, runs)]
     motions = [decided_by_record(r.records, s, r.status, rest_threshold) for r, s in zip(runs, scales)]
     undecided = [j for j, m in enumerate(motions) if m is None]
@@ -347,20 +504,38 @@ def classify_runs(
         return motions
     if not backend.restartable:  # it cannot be re-run from a state: no evidence beyond the record
         return [Motion("transient") if m is None else m for m in motions]
-    if backend.batched:
-        found = backend.evidence_many(
-            [params[j] for j in undecided],
-            np.array([runs[j].state[:4] for j in undecided]),
-            np.array([runs[j].records[0, _SEC] for j in undecided]),
-            np.array([scales[j] for j in undecided]),
-            extend_periods=EXTEND_PERIODS,
-            lyapunov_periods=max(runs[undecided[0]].records.shape[0], LYAP_MIN_PERIODS),
-            d0=LYAP_D0,
-            rest=rest_threshold,
-        )
-        evidence = [Evidence(sections, stretch) for sections, stretch in found]
-    else:
-        evidence = [backend_evidence(backend, params[j], runs[j], scales[j], rest_threshold) for j in undecided]
-    for j, ev in zip(undecided, evidence):
-        motions[j] = classify_with_evidence(runs[j].records, scales[j], ev)
+    if evidence == "full":
+        found = gather_evidence(
+            backend, [params[j] for j in undecided], [runs[j] for j in undecided], [scales[j] for j in undecided],
+            rest_threshold,
+        )  # fmt: skip
+        for j, ev in zip(undecided, found):
+            motion = classify_with_evidence(runs[j].records, scales[j], ev)
+            motions[j] = replace(motion, extension_periods=EXTEND_PERIODS, lyapunov_pair=True)
+        return motions
+    # A record with rotations is rotating or chaotic, and only the Lyapunov pair tells which.
+    swinging = [j for j in undecided if not np.any(runs[j].records[:, REC_ROTATIONS] != 0)]
+    sections, repeated, periods = staged_extension(
+        backend, [params[j] for j in swinging], [runs[j] for j in swinging], [scales[j] for j in swinging]
+    )
+    extension = {j: (s, int(n)) for j, s, n in zip(swinging, sections, periods)}
+    for j, settles in zip(swinging, repeated):
+        if settles:  # the record is a transient of an orbit that repeats
+            motions[j] = Motion("transient", extension_periods=extension[j][1])
+    pending = [j for j in undecided if motions[j] is None]
+    found = gather_evidence(
+        backend, [params[j] for j in pending], [runs[j] for j in pending], [scales[j] for j in pending],
+        rest_threshold, extend_periods=0,
+    )  # fmt: skip
+    for j, ev in zip(pending, found):
+        sections_j, periods_j = extension.get(j, (np.empty((0, 4)), 0))
+        motion = classify_with_evidence(runs[j].records, scales[j], Evidence(sections_j, ev.log_stretch))
+        motions[j] = replace(motion, extension_periods=periods_j, lyapunov_pair=True)
     return motions
+
+
+def classify_run(
+    backend, params: ModelParams, run: PointRun, rest_threshold: float = ENCODER_RESOLUTION, evidence: str = "staged"
+) -> Motion:
+    """Classify a finished sweep point, re-simulating with its backend when needed (see :func:`classify_runs`)."""
+    return classify_runs(backend, [params], [run], rest_threshold, evidence)[0]

@@ -39,7 +39,7 @@ import numpy as np
 import pyarrow as pa
 
 from .backends import BACKENDS, PointRun, make_backend
-from .classify import at_rest, classify_runs
+from .classify import EVIDENCE_MODES, at_rest, classify_runs
 from .columns import repeated, table, to_numpy
 from .errors import ConfigError
 from .executors import Executor
@@ -134,6 +134,9 @@ class SweepConfig:
         Perturbation [rad] added to theta when the pendulum is at rest (continue mode).
     rest_threshold : float
         "At rest" means max |theta| below this [rad]; one encoder pulse by default.
+    evidence : {"staged", "full"}
+        How much the motion classifier simulates past the record of a point
+        that its record leaves undecided (:func:`pendsweep.classify.classify_runs`).
     starts : int
         Initial conditions per point (multistart mode).
     seed : int
@@ -154,6 +157,7 @@ class SweepConfig:
     initial: tuple[float, float, float, float] = (0.0, 0.0, 0.1, 0.0)
     kick: float = 0.1
     rest_threshold: float = ENCODER_RESOLUTION
+    evidence: str = "staged"
     starts: int = 1
     seed: int = 0
 
@@ -169,6 +173,8 @@ class SweepConfig:
             raise ConfigError(f"mode = {self.mode!r}; choose one of {', '.join(MODES)}")
         if self.direction not in DIRECTIONS:
             raise ConfigError(f"direction = {self.direction!r}; choose one of {', '.join(DIRECTIONS)}")
+        if self.evidence not in EVIDENCE_MODES:
+            raise ConfigError(f"evidence = {self.evidence!r}; choose one of {', '.join(EVIDENCE_MODES)}")
         if self.transient not in TRANSIENTS:
             raise ConfigError(f"transient = {self.transient!r}; choose one of {', '.join(TRANSIENTS)}")
         for name, lo in (("transient_periods", 0), ("record_periods", 1), ("starts", 1), ("max_transient_periods", 1)):
@@ -356,7 +362,9 @@ def _unit(config: SweepConfig, r: PointResult) -> UnitResult:
 
 def _classified(config, backend, pending: list[tuple[PointResult, ModelParams]]) -> Iterator[UnitResult]:
     """The pending points of a continue branch, labelled together (one evidence launch), as units."""
-    motions = classify_runs(backend, [q for _, q in pending], [r.run for r, _ in pending], config.rest_threshold)
+    motions = classify_runs(
+        backend, [q for _, q in pending], [r.run for r, _ in pending], config.rest_threshold, config.evidence
+    )
     for (r, _), motion in zip(pending, motions):
         yield _unit(config, dataclasses.replace(r, motion=motion.label))
 
@@ -410,7 +418,7 @@ def _independent_units(config, backend, units, threads) -> list[UnitResult]:
         ic = initials[i][s] if config.mode == "multistart" else config.initial
         states.append(backend.initial_state(params[-1], *ic))
     runs, settled, used = run_units(config, backend, params, np.array(states), threads)
-    motions = classify_runs(backend, params, runs, config.rest_threshold)
+    motions = classify_runs(backend, params, runs, config.rest_threshold, config.evidence)
     return [
         _unit(config, PointResult("none", i, s, config.values[i], run, False, motion.label, bool(ok), int(n)))
         for (i, s), run, motion, ok, n in zip(units, runs, motions, settled, used)

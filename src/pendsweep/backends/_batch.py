@@ -269,7 +269,7 @@ def batched_evidence(
     """The classifier's evidence for many points in one launch (see :mod:`pendsweep.classify`).
 
     Per point three lanes run in lockstep: the record extended by
-    ``extend_periods`` from its final state, and the two-trajectory Lyapunov
+    ``extend_periods`` from its final state (no lane when 0), and the two-trajectory Lyapunov
     pair from the first recorded section state (the twin displaced by
     ``d0 * scales[2]`` in theta), renormalised inside the kernel every period
     for ``lyapunov_periods``.
@@ -285,32 +285,39 @@ def batched_evidence(
     Returns
     -------
     list of (sections float64[extend_periods or 0, 4], log_stretch float64[<= lyapunov_periods])
+        Sections are empty when the extension diverged or ``extend_periods`` is 0.
     """
     m = len(params)
     firsts = np.asarray(firsts, dtype=np.float64).reshape(m, 4)
     twins = firsts.copy()
     twins[:, 2] += d0 * np.asarray(scales)[:, 2]
-    states = np.stack([np.asarray(finals, dtype=np.float64).reshape(m, 4), firsts, twins], axis=1).reshape(3 * m, 4)
-    index = np.arange(3 * m)
-    total = np.where(index % 3 == 0, int(extend_periods), int(lyapunov_periods)).astype(np.int64)
+    # Per point: the extension (only when asked for; an idle lane would still
+    # be stepped with its chunk), then the Lyapunov reference and its twin.
+    per_point = 3 if extend_periods else 2
+    starts = [np.asarray(finals, dtype=np.float64).reshape(m, 4)] if extend_periods else []
+    states = np.stack([*starts, firsts, twins], axis=1).reshape(per_point * m, 4)
+    role = np.tile(np.arange(3 - per_point, 3), m)  # 0 extension, 1 reference, 2 twin
+    index = np.arange(per_point * m)
+    total = np.where(role == 0, int(extend_periods), int(lyapunov_periods)).astype(np.int64)
     lanes = Lanes(
-        transient=np.where(index % 3 == 0, 0, total),  # the Lyapunov pair records nothing, only its stretch
+        transient=np.where(role == 0, 0, total),  # the Lyapunov pair records nothing, only its stretch
         total=total,
-        partner=np.where(index % 3 == 2, index - 1, -1).astype(np.int64),
-        scales=np.repeat(np.asarray(scales, dtype=np.float64).reshape(m, 4), 3, axis=0).T,
+        partner=np.where(role == 2, index - 1, -1).astype(np.int64),
+        scales=np.repeat(np.asarray(scales, dtype=np.float64).reshape(m, 4), per_point, axis=0).T,
         d0=float(d0),
         rest=float(rest),
     )
-    lane_params = [q for q in params for _ in range(3)]
+    lane_params = [q for q in params for _ in range(per_point)]
     run, stretch = run_lanes(
         lane_params, states, lanes, int(extend_periods), int(lyapunov_periods),
         dt=dt, signum=signum, threads=threads,
     )  # fmt: skip
     evidence = []
     for j in range(m):
-        ok = run.status[3 * j] == STATUS_OK
-        sections = run.records[3 * j][:, SECTION_COLUMNS] if ok else np.empty((0, 4))
-        samples = stretch[3 * j + 2]
+        first = per_point * j
+        ok = extend_periods and run.status[first] == STATUS_OK
+        sections = run.records[first][:, SECTION_COLUMNS] if ok else np.empty((0, 4))
+        samples = stretch[first + per_point - 1]
         stop = np.flatnonzero(np.isnan(samples))
         evidence.append((sections, samples[: stop[0]] if stop.size else samples))
     return evidence

@@ -43,12 +43,37 @@ def wall_time(argv: list[str], cwd: Path, repeat: int = 2) -> float:
     return elapsed
 
 
+def dense_evidence_per_point(step: float) -> dict:
+    """Extension periods and Lyapunov pairs per point of the dense fresh sweep, staged and full evidence."""
+    import numpy as np
+
+    from ..classify import classify_runs
+    from ..sweep import SweepConfig, value_range
+
+    config = SweepConfig(parameter="alpha", values=tuple(value_range(0.0, 45.0, step)), mode="fresh")
+    backend = config.make_backend()
+    params = [config.params_at(v) for v in config.values]
+    states = np.array([backend.initial_state(q, *config.initial) for q in params])
+    runs = backend.run_points(params, states, config.transient_periods, config.record_periods)
+    out = {}
+    labels = {}
+    for evidence in ("staged", "full"):
+        motions = classify_runs(backend, params, runs, config.rest_threshold, evidence)
+        labels[evidence] = [m.label for m in motions]
+        out[f"dense_{evidence}_extension_periods_per_point"] = float(np.mean([m.extension_periods for m in motions]))
+        out[f"dense_{evidence}_lyapunov_pairs_per_point"] = float(np.mean([m.lyapunov_pair for m in motions]))
+    out["dense_labels_differing_staged_vs_full"] = sum(a != b for a, b in zip(labels["staged"], labels["full"]))
+    return out
+
+
 @benchmark("command")
 def bench_command(quick: bool) -> dict:
     """``pendsweep --help``, the canonical sweep and the dense fresh sweep against the naive script."""
     pendsweep = [sys.executable, "-m", "pendsweep.cli"]
     naive = [sys.executable, str(NAIVE)]
     dense_step = "0.5" if quick else "0.05"
+    dense = [*pendsweep, "alpha", "--from", "0", "--to", "45", "--step", dense_step, "--mode", "fresh"]
+    dense += ["-o", "d.parquet", "--overwrite"]
     work = Path(tempfile.mkdtemp(prefix="pendsweep-bench-"))
     try:
         out = {
@@ -68,24 +93,9 @@ def bench_command(quick: bool) -> dict:
             ),
             "import_numba_seconds": wall_time([sys.executable, "-c", "import numba"], work),
             "dense_fresh_points": 901 if not quick else 91,
-            "dense_fresh_seconds": wall_time(
-                [
-                    *pendsweep,
-                    "alpha",
-                    "--from",
-                    "0",
-                    "--to",
-                    "45",
-                    "--step",
-                    dense_step,
-                    "--mode",
-                    "fresh",
-                    "-o",
-                    "d.parquet",
-                    "--overwrite",
-                ],
-                work,
-            ),  # fmt: skip
+            "dense_fresh_seconds": wall_time([*dense, "--evidence", "staged"], work),
+            # Before issue 23 item 2: every undecided point's whole extension and Lyapunov pair.
+            "dense_fresh_full_evidence_seconds": wall_time([*dense, "--evidence", "full"], work),
             "dense_fresh_naive_script_seconds": wall_time([*naive, "fresh", "0", "45", dense_step], work),
         }
     finally:
@@ -94,13 +104,16 @@ def bench_command(quick: bool) -> dict:
     out["dense_naive_over_pendsweep"] = out["dense_fresh_naive_script_seconds"] / out["dense_fresh_seconds"]
     floor = out["one_point_naive_script_seconds"]
     out["dense_ratio_ceiling"] = out["dense_fresh_naive_script_seconds"] / floor
-    out["dense_compute_ratio"] = (out["dense_fresh_naive_script_seconds"] - floor) / max(
-        out["dense_fresh_seconds"] - out["one_point_seconds"], 1e-9
-    )
+    for evidence, key in (("", "dense_fresh_seconds"), ("_full_evidence", "dense_fresh_full_evidence_seconds")):
+        out[f"dense_compute_ratio{evidence}"] = (out["dense_fresh_naive_script_seconds"] - floor) / max(
+            out[key] - out["one_point_seconds"], 1e-9
+        )
+    out.update(dense_evidence_per_point(float(dense_step)))
     out["targets"] = {
         "help_seconds_max": 0.3,
         "one_point_seconds_max": 1.0,
         "canonical_over_naive_max": 1.5,
         "dense_naive_over_pendsweep_min": 10.0,
+        "dense_compute_ratio_min": 10.0,
     }
     return out

@@ -198,6 +198,15 @@ def sweep_options(default_step: float, unit: str):
                 help="At rest: max|theta| below this [rad] (one encoder pulse), 0 to pi.",
             ),
             click.option(
+                "--evidence",
+                type=LazyChoice(".classify", "EVIDENCE_MODES"),
+                default="staged",
+                show_default=True,
+                help="What the motion classifier simulates past an undecided record: staged (an extension that "
+                "stops once the section repeats, the Lyapunov pair only where needed) or full (200 periods and the "
+                "pair for every such point).",
+            ),
+            click.option(
                 "--starts",
                 type=click.IntRange(1, MAX_STARTS),
                 default=8,
@@ -322,6 +331,7 @@ def build_config(parameter: str, default_step: float, kw: dict[str, Any], ctx: c
         initial=(0.0, 0.0, kw["theta0"], kw["thetadot0"]),
         kick=kw["kick"],
         rest_threshold=kw["rest_threshold"],
+        evidence=kw["evidence"],
         starts=kw["starts"] if kw["mode"] == "multistart" else 1,
         seed=kw["seed"],
         transient=kw["transient"],
