@@ -46,8 +46,6 @@ import numpy as np
 
 from .classify import MAX_PERIOD, PERIODIC_TOL, Y_FLOOR, section_difference
 from .kernels._layout import (
-    REC_ROTATIONS,
-    REC_THETA_ABSMAX,
     REC_THETADOT_SEC,
     REC_Y_ABSMAX,
     REC_Y_SEC,

@@ -17,9 +17,11 @@ end, throughput against batch size and thread count (plotted to
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import re
+import subprocess
 import sys
 import time
 from collections.abc import Callable
@@ -31,14 +33,14 @@ import numpy as np
 
 from ..backends import make_backend
 from ..backends._batch import run_batch
-from ..kernels import wrap_angle
+from ..kernels import WIDE_VECTORS, wrap_angle
 from ..params import TABLE_IV, ModelParams
 from .core import solve_ivp_point
 from .registry import benchmark
 
 FIGURE = Path("results/figures/throughput.png")
 TARGETS = {
-    "batched_ns_per_point_step_per_core_max": 10.0,
+    "batched_ns_per_point_step_per_core_max": 6.0,
     "speedup_vs_scalar_min": 5.0,
     "speedup_vs_jax_min": 10.0,
     "speedup_vs_solve_ivp_min": 1000.0,
@@ -175,6 +177,39 @@ def _row(
         "horizon_periods": horizon,
         "note": note,
     }
+
+
+_NARROW_SCRIPT = """
+import json, sys
+import numpy as np
+from pendsweep.backends._batch import run_batch
+from pendsweep.bench.throughput import best_times, peer_points
+n_alpha, n_mass, horizon, threads = (int(a) for a in sys.argv[1:])
+params = peer_points(n_alpha, n_mass)
+states = np.tile([0.0, 0.0, 0.1, 0.0], (len(params), 1))
+run_batch(params, states, 0, 1)
+print(json.dumps(best_times(lambda: run_batch(params, states, 0, horizon, threads=threads), 5)))
+"""
+
+
+def _narrow_vectors_row(grid: tuple[int, int], horizon: int, threads: int) -> dict | None:
+    """The batched kernel built with numba's own tuning (256-bit vectors), in a fresh process.
+
+    The peer of :mod:`pendsweep._vector_width`: the same points and horizon; None
+    where this process does not use 512-bit vectors (nothing to compare).
+    """
+    if not WIDE_VECTORS:
+        return None
+    env = dict(os.environ, PENDSWEEP_VECTOR_WIDTH="256")
+    done = subprocess.run(
+        [sys.executable, "-c", _NARROW_SCRIPT, *(str(v) for v in (*grid, horizon, threads))],
+        env=env, capture_output=True, text=True, check=True,
+    )  # fmt: skip
+    times = json.loads(done.stdout.strip().splitlines()[-1])
+    name = f"pendsweep batched, numba's 256-bit tuning ({threads} thread{'s' if threads > 1 else ''})"
+    return _row(
+        name, times, grid[0] * grid[1] * horizon * 400, threads, horizon, "PENDSWEEP_VECTOR_WIDTH=256, a fresh process"
+    )
 
 
 def _markdown(rows: list[dict]) -> list[str]:
@@ -318,7 +353,8 @@ def _plot(scaling: dict, path: Path) -> None:
 def bench_throughput(quick: bool) -> dict:
     """Batched kernel vs scalar kernel, numpy RK4, JAX and solve_ivp on the same points."""
     threads = nb.config.NUMBA_NUM_THREADS
-    params = peer_points(8, 4) if quick else peer_points(16, 16)
+    grid = (8, 4) if quick else (16, 16)
+    params = peer_points(*grid)
     n = len(params)
     steps = 400  # fe = 2.5 Hz at dt = 1 ms
     dt = 1.0 / (2.5 * steps)
@@ -332,6 +368,10 @@ def bench_throughput(quick: bool) -> dict:
         rows.append(
             _row(f"pendsweep batched ({t} thread{'s' if t > 1 else ''})", times, n * horizon * steps, t, horizon)
         )
+
+    narrow = _narrow_vectors_row(grid, horizon, 1)  # against the one-thread row: no scheduling in the ratio
+    if narrow is not None:
+        rows.append(narrow)
 
     backend = make_backend("emulated")
     backend.run_point(params[0], states[0], 0, 1)
@@ -390,7 +430,11 @@ def bench_throughput(quick: bool) -> dict:
         )
     )
 
-    best = min(r["ns_per_point_step_per_core"] for r in rows if r["peer"].startswith("pendsweep batched"))
+    best = min(
+        r["ns_per_point_step_per_core"]
+        for r in rows
+        if r["peer"].startswith("pendsweep batched") and "256-bit" not in r["peer"]
+    )
     for r in rows:
         r["times_slower_than_batched"] = r["ns_per_point_step_per_core"] / best
     by_name = {r["peer"].split(" (")[0].split(",")[0]: r for r in rows}
@@ -406,26 +450,33 @@ def bench_throughput(quick: bool) -> dict:
         "agreement": agreement,
         "jax": jax_note,
         "vector_instructions_of_inner_loop": vector_instructions(),
+        "wide_vectors": WIDE_VECTORS,
         "targets": TARGETS,
         "batched_ns_per_point_step_per_core": best,
         "speedup_vs_scalar": by_name["pendsweep scalar kernel"]["times_slower_than_batched"],
         "speedup_vs_solve_ivp": by_name["scipy solve_ivp RK45 rtol 1e-8"]["times_slower_than_batched"],
     }
+    narrow_rows = [r for r in rows if "256-bit" in r["peer"]]
+    if narrow_rows:
+        one_thread = next(r for r in rows if r["peer"] == "pendsweep batched (1 thread)")
+        result["speedup_vs_256_bit_vectors"] = (
+            narrow_rows[0]["ns_per_point_step_per_core"] / one_thread["ns_per_point_step_per_core"]
+        )
     jax_rows = [r for r in rows if r["peer"].startswith("JAX")]
     if jax_rows:
         result["speedup_vs_jax"] = jax_rows[0]["times_slower_than_batched"]
 
-    grid = fig10a_points(10, 10) if quick else fig10a_points(100, 100)
+    fig10a = fig10a_points(10, 10) if quick else fig10a_points(100, 100)
     periods = (5, 1) if quick else (100, 20)
-    run_batch(grid[:1], states[:1], 0, 1)
-    wall, cpu = best_times(lambda: run_batch(grid, np.tile([0.0, 0.0, 0.1, 0.0], (len(grid), 1)), *periods), 1)
+    run_batch(fig10a[:1], states[:1], 0, 1)
+    wall, cpu = best_times(lambda: run_batch(fig10a, np.tile([0.0, 0.0, 0.1, 0.0], (len(fig10a), 1)), *periods), 1)
     result["fig10a_grid"] = {
-        "points": len(grid),
+        "points": len(fig10a),
         "periods_per_point": sum(periods),
         "seconds": wall,
         "cpu_seconds": cpu,
         "threads": threads,
-        "point_steps": float(sum(sum(periods) * backend.steps_per_period(p) for p in grid)),
+        "point_steps": float(sum(sum(periods) * backend.steps_per_period(p) for p in fig10a)),
     }
 
     scaling = _scaling(quick)

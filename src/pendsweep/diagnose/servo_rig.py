@@ -16,6 +16,8 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
+from .._vector_width import WIDE_VECTORS  # noqa: F401  numba's CPU tuning as the kernels', whichever comes first
+
 #: Valve of a first-order servo: its pole over the servo's corner frequency.
 VALVE_RATIO = 5.0
 #: Servo of the substructuring rig: transport delay [s], natural frequency [rad/s], damping ratio.

@@ -11,6 +11,7 @@ Set ``NUMBA_DISABLE_JIT=1`` to run them as plain Python (for coverage or
 debugging); results are identical, only slower.
 """
 
+from .._vector_width import WIDE_VECTORS  # first: numba reads its CPU tuning once, before any kernel
 from ._emulated import emulated_periods, emulated_trace, eq11_params, eq11_step, forcing_table
 from ._layout import (
     N_RECORD_COLUMNS,
@@ -30,6 +31,7 @@ __all__ = [
     "STATUS_DIVERGED",
     "STATUS_OK",
     "STATUS_UNSTABLE",
+    "WIDE_VECTORS",
     "compile_physics",
     "driven_trace",
     "emulated_periods",
