@@ -159,6 +159,7 @@ def _map_task(config: MapConfig, cells: np.ndarray) -> list:
             "period": runs.period,
             "rotation_number": runs.turns / np.maximum(runs.period, 1),
             "settle_periods": runs.settle_periods,
+            "periods_done": runs.periods_done,
             "theta_absmax": runs.theta_absmax,
         }
     )

@@ -193,7 +193,11 @@ def run_lanes(
     done = np.zeros(n, dtype=np.int64)
     if n == 0:
         return BatchRun(records, states.copy(), status, done), stretch
-    steps = np.array([steps_per_period(q.fe, dt) for q in params], dtype=np.int64)
+    # Per distinct parameter set, not per lane: basins and maps pass one set thousands of times a round.
+    distinct = {id(q): q for q in params}
+    columns = {key: (q.kernel_array(), q.alpha, q.fe, steps_per_period(q.fe, dt)) for key, q in distinct.items()}
+    lane_columns = [columns[id(q)] for q in params]
+    steps = np.array([c[3] for c in lane_columns], dtype=np.int64)
     # Lanes sorted by steps per period (chunks share forcing tables), then by
     # length, so that a chunk's lanes finish together (its dead lanes are
     # still stepped until its longest one ends); each twin right after its partner.
@@ -210,9 +214,9 @@ def run_lanes(
         d0=float(lanes.d0),
         rest=float(lanes.rest),
     )
-    p = np.ascontiguousarray(np.stack([params[i].kernel_array() for i in order], axis=1))
-    alpha = np.array([params[i].alpha for i in order])
-    fe = np.array([params[i].fe for i in order])
+    p = np.ascontiguousarray(np.stack([lane_columns[i][0] for i in order], axis=1))
+    alpha = np.array([lane_columns[i][1] for i in order])
+    fe = np.array([lane_columns[i][2] for i in order])
     sorted_steps = np.ascontiguousarray(steps[order])
     soa = np.ascontiguousarray(states[order].T)
     out = np.full_like(records, np.nan)

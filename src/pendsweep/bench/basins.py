@@ -1,4 +1,14 @@
-"""Basin map with early stop: the issue-14 target (200 x 200 starts, 1000-period cap, <= 60 s on 2 cores)."""
+"""Basins and maps against their kernel: the cost of a point-step inside ``basins`` and ``map``.
+
+``basins`` and ``map`` integrate their starts (cells) in rounds on the
+batched kernel and check between rounds which have settled
+(:func:`pendsweep.basins.settle_runs`). The kernel's own cost per point-step
+is measured in the same run on the same starts (a fixed horizon, no checks);
+the ratio of the two is the overhead of the rounds, the settling checks and
+the bookkeeping (goal: at most 1.2). The saving of early stop is reported
+against the same starts all integrated to the cap (the naive per-start
+alternative, timed on a subsample and scaled).
+"""
 
 from __future__ import annotations
 
@@ -7,9 +17,14 @@ import time
 
 import numpy as np
 
+from ..backends._base import steps_per_period
 from ..backends._batch import run_batch
 from ..basins import BasinConfig, run_basins
+from ..maps import MapConfig, run_map
 from .registry import benchmark
+
+#: Largest cost of a point-step in basins and map over the kernel's own (issue 23).
+OVERHEAD_MAX = 1.2
 
 
 def _cpu_seconds() -> float:
@@ -17,45 +32,72 @@ def _cpu_seconds() -> float:
     return usage.ru_utime + usage.ru_stime
 
 
+def _timed(fn):
+    cpu0, t0 = _cpu_seconds(), time.perf_counter()
+    out = fn()
+    return out, time.perf_counter() - t0, _cpu_seconds() - cpu0
+
+
+def _kernel_ns(params: list, states: np.ndarray, periods: int) -> float:
+    """CPU ns per point-step of the batched kernel alone on ``params`` from ``states``, ``periods`` each."""
+    run_batch(params[:2], states[:2], 0, 1)  # load the JIT cache
+    _, _, cpu = _timed(lambda: run_batch(params, states, 0, periods))
+    steps = sum(steps_per_period(p.fe, 1e-3) for p in params) * periods
+    return 1e9 * cpu / steps
+
+
 @benchmark("basins")
 def bench_basins(quick: bool) -> dict:
-    """Wall and CPU time of a basin grid at alpha = 40 N, against the same starts without early stop.
-
-    The peer (every start integrated to the cap) is timed on a subsample of
-    starts for the full cap and scaled by starts; the ratio is the saving
-    of early stop. CPU seconds are reported beside wall seconds because the
-    machine is shared: CPU / 2 is what two idle cores would need.
-    """
+    """Basin grid at alpha = 40 N and a (alpha, fe) map: ns per point-step against the kernel's, early stop's saving."""
     grid = (50, 50) if quick else (200, 200)
     max_periods = 1000
     config = BasinConfig("alpha", (40.0,), {"fe": 2.5}, sampling="grid", grid=grid, max_periods=max_periods)
     params = config.params_at(40.0)
+    steps = steps_per_period(params.fe, 1e-3)  # basins run at the emulated backend's 1 ms step
     run_batch([params] * 2, np.zeros((2, 4)), 0, 1)  # load the JIT cache
 
-    cpu0, t0 = _cpu_seconds(), time.perf_counter()
-    df = run_basins(config, None)
-    wall, cpu = time.perf_counter() - t0, _cpu_seconds() - cpu0
+    df, wall, cpu = _timed(lambda: run_basins(config, None))
+    periods = df["periods_done"].to_numpy()
+    basins_ns = 1e9 * cpu / (periods.sum() * steps)
 
-    sample = 256
+    sample = 1024 if quick else 4096
     theta0, thetadot0 = config.initial_conditions(0)
     states = np.zeros((sample, 4))
     states[:, 2], states[:, 3] = theta0[:sample], thetadot0[:sample]
-    peer_periods = 100 if quick else 250  # a quarter of the cap, scaled up below
-    cpu1, t1 = _cpu_seconds(), time.perf_counter()
-    run_batch([params] * sample, states, 0, peer_periods)
-    peer_wall = (time.perf_counter() - t1) * (config.starts / sample) * (max_periods / peer_periods)
-    peer_cpu = (_cpu_seconds() - cpu1) * (config.starts / sample) * (max_periods / peer_periods)
-    periods = df["periods_done"].to_numpy()
+    peer_periods = 50 if quick else 100
+    kernel_ns = _kernel_ns([params] * sample, states, peer_periods)
+    peer_cpu = kernel_ns * 1e-9 * config.starts * max_periods * steps  # every start to the cap
+
+    side = 20 if quick else 60
+    map_config = MapConfig(
+        "alpha", tuple(np.linspace(5.0, 40.0, side)), "fe", tuple(np.linspace(2.2, 2.8, side)), max_periods=600
+    )
+    cells, map_wall, map_cpu = _timed(lambda: run_map(map_config, None))
+    cell_params = [map_config.params_at(a, f) for a, f in zip(cells["alpha"], cells["fe"])]
+    cell_steps = np.array([steps_per_period(p.fe, map_config.dt) for p in cell_params])
+    map_ns = 1e9 * map_cpu / float((cells["periods_done"].to_numpy() * cell_steps).sum())
+    map_states = np.tile([0.0, 0.0, *map_config.initial], (len(cell_params), 1))
+    map_kernel_ns = _kernel_ns(cell_params, map_states, peer_periods // 2)
     return {
         "starts": config.starts,
         "max_periods": max_periods,
         "wall_seconds": wall,
         "cpu_seconds": cpu,
-        "target_wall_seconds_two_cores": 60.0,
         "mean_periods_per_start": float(periods.mean()),
         "unsettled_fraction": float((df["motion"] == "unsettled").mean()),
-        "no_early_stop_wall_seconds_estimated": peer_wall,
+        "basins_ns_per_point_step_cpu": basins_ns,
+        "kernel_ns_per_point_step_cpu": kernel_ns,
+        "basins_over_kernel": basins_ns / kernel_ns,
         "no_early_stop_cpu_seconds_estimated": peer_cpu,
         "early_stop_saving_cpu": peer_cpu / cpu,
-        "ns_per_start_period_cpu": cpu / periods.sum() * 1e9,
+        "map": {
+            "cells": len(cell_params),
+            "max_periods": map_config.max_periods,
+            "wall_seconds": map_wall,
+            "cpu_seconds": map_cpu,
+            "map_ns_per_point_step_cpu": map_ns,
+            "kernel_ns_per_point_step_cpu": map_kernel_ns,
+            "map_over_kernel": map_ns / map_kernel_ns,
+        },
+        "targets": {"over_kernel_max": OVERHEAD_MAX, "basins_200x200_wall_seconds_max": 10.0},
     }
