@@ -297,6 +297,15 @@ def test_columns_in_other_units_are_converted_and_unknown_units_refused(tmp_path
     r = CliRunner().invoke(main, ["diagnose", str(csv)])
     assert r.exit_code == 2 and "column 'y' in unit 'furlong'; accepted: m, mm" in r.output
     assert len(r.output.strip().splitlines()) == 1
+    # Undeclared units that the scales give away: displacements in mm (both), the load cell in kN.
+    for undeclared, message in ((("y", "y_cmd"), "beyond any actuator stroke"), (("Fs",), "the load cell Fs reads")):
+        meta["columns"] = {c: spec for c, spec in meta["columns"].items() if c not in (*undeclared, "y")}
+        meta["columns"].update({c: {"unit": {"y": "mm", "y_cmd": "mm", "Fs": "kN"}[c]} for c in ("y", "y_cmd", "Fs")
+                                if c not in undeclared})  # fmt: skip
+        csv.with_suffix(".json").write_text(json.dumps(meta))
+        r = CliRunner().invoke(main, ["diagnose", str(csv)])
+        assert r.exit_code == 2 and message in r.output, r.output
+        assert len(r.output.strip().splitlines()) == 1
 
 
 def test_an_actuator_table_in_the_metadata_is_checked(tmp_path):

@@ -64,6 +64,10 @@ DELAY_TOLERANCE = 1.5e-3
 GAIN_TOLERANCE = 0.02
 #: Largest relative difference of a second-order servo's natural frequency that is not a fault [-].
 BANDWIDTH_TOLERANCE = 0.2
+#: The load cell may read this many times more or less than the nominal specimen's force before the
+#: record is refused as a unit error: a gain error of the load cell is a few to tens of per cent, a unit
+#: error a factor of 1000 (kN, mN); the margin leaves room for a load cell whose noise swamps a small motion.
+FORCE_SCALE_LIMITS = (0.05, 20.0)
 #: Channels a record needs for each part.
 PART_CHANNELS = {"transfer": ("y_cmd", "y"), "physical": ("theta", "Fs"), "numerical": ("Fe",)}
 
@@ -311,6 +315,7 @@ def diagnose_parts(
         fit = ident.motion_fit
         motion = ident.problem.motion(fit.actuator, 2 * substeps, fit.initial)
         physical.append(PhysicalReplay(r, motion, substeps, horizon, folds))
+        _check_force_scale(physical[-1], r)
 
     def restricted(part: str) -> list[str] | None:
         if wanted is None:
@@ -333,6 +338,20 @@ def diagnose_parts(
     else:
         numerical_diag = diagnose([NumericalReplay(r, horizon, folds) for r in records], numerical_causes, n_jobs)
     return PartsDiagnosis(transfers, verdicts, physical_diag, numerical_diag, skipped)
+
+
+def _check_force_scale(replay: PhysicalReplay, record: Record) -> None:
+    """Refuse a load cell whose spread is far from the nominal specimen's force: kN read as N, or the reverse."""
+    modelled = replay.simulate({})["Fs"]
+    measured = record.channel("Fs")
+    valid = np.isfinite(modelled)
+    ratio = float(np.std(measured[valid]) / np.std(modelled[valid])) if valid.any() else 1.0
+    low, high = FORCE_SCALE_LIMITS
+    if not low <= ratio <= high:
+        raise ConfigError(
+            f"{record.name}: the load cell Fs reads {ratio:.3g} x the force the nominal specimen gives on this "
+            'motion: check its units (declare them in the metadata\'s columns, e.g. {"Fs": {"unit": "kN"}})'
+        )
 
 
 #: Sensor causes of the transfer system that the physical replay fits (the load cell's gain, the encoder's zero).

@@ -67,6 +67,9 @@ FREE_RESPONSE_FLOOR = 1e-3
 BLOCK_SECONDS = 1.0
 #: A more complex model is selected only when its held-out mean square beats the simpler one's by this share.
 SELECT_MARGIN = 0.05
+#: Largest platform displacement a record may command [m]: the rig's stroke is centimetres, so a
+#: larger one is a unit error (millimetres read as metres).
+MAX_STROKE = 1.0
 #: Servo rates tried as starts [Hz] (the fit keeps the best).
 RATE_STARTS_HZ = (8.0, 40.0, 200.0)
 
@@ -533,6 +536,13 @@ def identify_transfer(
     """
     if np.ptp(command) == 0.0:
         raise ConfigError("the command y_cmd is constant: the actuator cannot be identified from it")
+    reach = float(np.max(np.abs(command)))
+    if reach > MAX_STROKE:
+        raise ConfigError(
+            f"the command y_cmd reaches {reach:.3g} m, beyond any actuator stroke of this rig ({MAX_STROKE:g} m): "
+            'check its units (declare them in the metadata\'s columns, e.g. {"y_cmd": {"unit": "mm"}, '
+            '"y": {"unit": "mm"}})'
+        )
     ratio = float(np.std(measured) / np.std(command))
     if not 0.2 <= ratio <= 5.0:
         raise ConfigError(
