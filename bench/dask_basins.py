@@ -62,7 +62,7 @@ def run(workers: int, grid: int, max_periods: int, folder: Path) -> dict:
             procs.append(subprocess.Popen(cmd, env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True))
         time.sleep(5)  # the workers register with the scheduler; the client waits for it as well
         output = folder / f"basins-{workers}.parquet"
-        command = [sys.executable, "-m", "pendsweep", "basins", "--alpha", "40", "--fe", "2.5"]
+        command = [sys.executable, "-m", "pendsweep.cli", "basins", "--alpha", "40", "--fe", "2.5"]
         command += ["--grid", f"{grid}x{grid}", "--max-periods", str(max_periods), "--jobs", "1"]
         command += ["--executor", "dask", "--scheduler", address, "-o", str(output), "--yes", "--no-progress"]
         t0 = time.perf_counter()
