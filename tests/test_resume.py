@@ -233,7 +233,10 @@ def test_parts_carry_the_hash_and_the_config_is_stored_once(tmp_path):
     assert stored["config_hash"] == meta["config_hash"] and stored["config"] == meta["config"]
     for part in _parts(out):
         part_meta = read_metadata(part)
-        assert set(part_meta) == {"config_hash", "final_states"} and part_meta["config_hash"] == meta["config_hash"]
+        assert (
+            set(part_meta) == {"config_hash", "final_states", "row_group_units"}
+            and part_meta["config_hash"] == meta["config_hash"]
+        )
     # A part of another configuration among them is refused, not merged.
     other = SweepConfig(
         "alpha", (10.0, 12.0, 14.0), mode="fresh", model={"fe": 2.3}, transient_periods=5, record_periods=2

@@ -105,12 +105,17 @@ def sort_rows(table_: pa.Table, keys: list[str]) -> pa.Table:
     return table_.take(column(order))
 
 
-def has_duplicate_rows(table_: pa.Table, keys: list[str]) -> bool:
-    """Whether two rows of ``table_`` agree on every column of ``keys``."""
+def sorted_key_order(table_: pa.Table, keys: list[str]) -> tuple[np.ndarray, bool]:
+    """The stable ascending order of the rows by ``keys``, and whether no two rows agree on every key."""
     if table_.num_rows < 2:
-        return False
-    _, ordered = _key_order(table_, keys)
+        return np.arange(table_.num_rows), True
+    order, ordered = _key_order(table_, keys)
     same = np.ones(table_.num_rows - 1, dtype=bool)
     for c in ordered:
         same &= c[1:] == c[:-1]
-    return bool(same.any())
+    return order, not same.any()
+
+
+def has_duplicate_rows(table_: pa.Table, keys: list[str]) -> bool:
+    """Whether two rows of ``table_`` agree on every column of ``keys``."""
+    return not sorted_key_order(table_, keys)[1]

@@ -362,6 +362,7 @@ class HopfScan:
     config: HopfConfig
     desc: str = "hopf"
     row_columns: list[str] = field(default_factory=lambda: list(KEY_COLUMNS))
+    resume_columns: list[str] = field(default_factory=list)  # a resume needs only the finished keys
 
     def __post_init__(self) -> None:
         self.backend = make_backend(self.config.backend, **self.config.backend_options)
@@ -435,7 +436,8 @@ def run_hopf(
     executor: Executor | None = None,
     max_work: float | None = DEFAULT_MAX_WORK,
     checkpoint_seconds: float = 1.0,
-) -> pd.DataFrame:
+    return_rows: bool = True,
+) -> pd.DataFrame | None:
     """Run (or resume) a Hopf-boundary scan; one row per (M, omega_hat, method).
 
     ``executor`` (:mod:`pendsweep.executors`, default this process) runs the
@@ -446,7 +448,8 @@ def run_hopf(
     method``). Scans whose work estimate (:meth:`HopfScan.work`) exceeds
     ``max_work`` integration steps are refused (None: no limit); a finished
     row is written at most ``checkpoint_seconds`` s after it finishes. Returns the
-    rows sorted by mass, omega_hat and method order.
+    rows sorted by mass, omega_hat and method order (None with
+    ``return_rows=False``, which never holds all rows; read them back from ``output``).
     """
     return run_scan(
         HopfScan(config),
@@ -457,6 +460,7 @@ def run_hopf(
         executor=executor,
         max_work=max_work,
         checkpoint_seconds=checkpoint_seconds,
+        return_rows=return_rows,
     )
 
 

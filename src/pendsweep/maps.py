@@ -174,6 +174,7 @@ class MapScan:
     chunk_cells: int = CHUNK_STARTS
     desc: str = "map"
     row_columns: list[str] = field(default_factory=lambda: list(ROW_COLUMNS))
+    resume_columns: list[str] = field(default_factory=list)  # a resume needs only the finished keys
 
     def metadata(self) -> dict[str, Any]:
         from .results import run_metadata
@@ -220,7 +221,8 @@ def run_map(
     chunk_cells: int = CHUNK_STARTS,
     max_work: float | None = None,
     checkpoint_seconds: float = 1.0,
-) -> pd.DataFrame:
+    return_rows: bool = True,
+) -> pd.DataFrame | None:
     """Run (or resume) a two-parameter map; one row per grid cell.
 
     Cells go in units of ``chunk_cells``, each on the batched kernel with
@@ -228,6 +230,8 @@ def run_map(
     finished units are persisted (at most ``checkpoint_seconds`` s after
     they finish) and skipped on a rerun. ``max_work``
     limits the work estimate (every cell to the cap); None: no limit.
+    ``return_rows=False`` (with ``output``): return None and never hold all
+    rows (read the columns needed back from ``output``).
     """
     from .scan import run_scan
 
@@ -239,6 +243,7 @@ def run_map(
         executor=executor,
         max_work=max_work,
         checkpoint_seconds=checkpoint_seconds,
+        return_rows=return_rows,
     )
 
 

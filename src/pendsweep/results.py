@@ -3,12 +3,16 @@
 One process at a time writes an output: :class:`OutputLock` (``<output>.lock``,
 owner pid and host inside) is taken before any work, and a second process is
 refused at once. A run writes its finished units into ``<output>.parts/`` as
-small parquet files, each written to a temporary name, fsynced and atomically
-renamed, so a killed process leaves only whole parts behind; the run's
+small parquet files (one row group per unit), each written to a temporary
+name, fsynced and atomically renamed, so a killed process leaves only whole
+parts behind; the run's
 configuration is stored once in ``<output>.parts/config.json`` and every part
 carries its hash. Rerunning the same configuration checks every part's hash,
 skips the units they hold and goes on; when every unit is done the parts are
 merged into ``<output>`` (again by atomic rename) and the folder is removed.
+The merge streams one row group at a time (:mod:`pendsweep.merge`), so
+neither the run nor its merge holds all rows: memory stays within the
+store's buffer (at most ``flush_points`` units) and the row-key columns.
 The final file carries the fully resolved configuration as JSON in its
 parquet key-value metadata under ``pendsweep``.
 """
@@ -34,6 +38,7 @@ import pyarrow.parquet as pq
 
 from .columns import has_duplicate_rows, read_parquet, sort_rows
 from .errors import ResultsError
+from .merge import plan_row_groups, unified_schema, write_row_groups
 
 if TYPE_CHECKING:  # rows are pyarrow Tables here; frames only where they are asked for
     import pandas as pd
@@ -129,11 +134,16 @@ def concat_rows(tables: list[pa.Table]) -> pa.Table:
     return pa.concat_tables(tables, promote_options="permissive") if tables else pa.table({})
 
 
+def schema_with_metadata(schema: pa.Schema, metadata: dict[str, Any]) -> pa.Schema:
+    """``schema`` carrying ``metadata`` as JSON under :data:`METADATA_KEY` (other keys kept)."""
+    meta = dict(schema.metadata or {})
+    meta[METADATA_KEY] = json.dumps(metadata, sort_keys=True).encode()
+    return schema.with_metadata(meta)
+
+
 def with_metadata(rows: pa.Table | pd.DataFrame, metadata: dict[str, Any]) -> pa.Table:
     table = as_table(rows)
-    meta = dict(table.schema.metadata or {})
-    meta[METADATA_KEY] = json.dumps(metadata, sort_keys=True).encode()
-    return table.replace_schema_metadata(meta)
+    return table.replace_schema_metadata(schema_with_metadata(table.schema, metadata).metadata)
 
 
 def read_metadata(path: Path) -> dict[str, Any]:
@@ -154,6 +164,14 @@ def read_results(path: Path) -> tuple[pd.DataFrame, dict[str, Any]]:
         raise ResultsError(f"no results file at {str(path)!r}")
     meta = read_metadata(path)
     return pq.read_table(path).to_pandas(), meta
+
+
+def _part_metadata(part: pq.ParquetFile) -> dict[str, Any]:
+    """A part's ``pendsweep`` metadata (``KeyError``, ``TypeError`` or ``ValueError`` when it has none that fits)."""
+    meta = json.loads(part.schema_arrow.metadata[METADATA_KEY])
+    if not isinstance(meta["final_states"], dict):
+        raise ValueError("final_states is not a mapping")
+    return meta
 
 
 class OutputLock:
@@ -258,10 +276,11 @@ class ResultStore:
 
     Layout while a run is unfinished: ``<output>.lock`` (:class:`OutputLock`),
     ``<output>.parts/config.json`` (the run's metadata, written once) and
-    ``<output>.parts/part-NNNNNN-PID.parquet`` files, each carrying only the
-    configuration hash and the final states of its units. When every unit is
-    done, :meth:`finalize` merges the parts into ``<output>`` (metadata and
-    all final states included) and removes the folder; a run that finds a
+    ``<output>.parts/part-NNNNNN-PID.parquet`` files, each holding one row
+    group per unit and carrying only the configuration hash, the final states
+    of its units and the unit of each row group (``row_group_units``). When
+    every unit is done, :meth:`finalize` merges the parts into ``<output>``
+    (metadata and all final states included) and removes the folder; a run that finds a
     finished ``<output>`` of its configuration removes any folder left by a
     kill after the final rename.
 
@@ -309,7 +328,7 @@ class ResultStore:
         self.parts = self.path.with_name(self.path.name + ".parts")
         self.flush_points = flush_points
         self.flush_seconds = flush_seconds
-        self._buffer: list[pa.Table] = []
+        self._buffer: list[tuple[str, pa.Table]] = []  # (unit key, its rows), in the order they finished
         self._buffer_states: dict[str, list[float]] = {}
         self._last_flush = time.monotonic()
         # The scan adds units from its own thread; the timer writes from another.
@@ -364,32 +383,44 @@ class ResultStore:
         return self.path.exists()
 
     # -- resume ---------------------------------------------------------------
-    def done(self) -> tuple[pa.Table, dict[str, list[float]]]:
+    def done(self, columns: list[str] | None = None) -> tuple[pa.Table, dict[str, list[float]]]:
         """Rows and final states (per unit key) already persisted (empty on a fresh start).
+
+        ``columns`` projects the rows: None reads every column; a list reads
+        those and the row columns (by which duplicates are dropped); an
+        empty list reads no rows at all, only the states, so a resumed run
+        of a million rows need not hold them.
 
         Every part's configuration hash is checked (a mismatch is an error).
         A part that cannot be read is reported on the ``pendsweep`` logger,
         moved aside (``*.corrupt``) and its units count as not done, so the
         run recomputes them.
         """
+        projection = None if columns is None else self.row_columns + [c for c in columns if c not in self.row_columns]
         if self.path.exists():
-            return read_parquet(self.path), read_metadata(self.path).get("final_states", {})
+            states = read_metadata(self.path).get("final_states", {})
+            if columns == []:
+                return pa.table({}), states
+            with pq.ParquetFile(self.path) as final:
+                return final.read(columns=projection), states
         tables, states = [], {}
         for f in sorted(self.parts.glob("part-*.parquet")):
             try:
-                table = read_parquet(f)
-                meta = read_metadata(f)
-                part_states = meta["final_states"]
-                if not isinstance(part_states, dict):
-                    raise ValueError("final_states is not a mapping")
+                with pq.ParquetFile(f) as part:
+                    meta = _part_metadata(part)
+                    table = part.read(columns=projection) if columns != [] else None
             except (OSError, ValueError, KeyError, TypeError, pa.ArrowException) as exc:
-                _log.warning(f"part {str(f)!r} is unreadable ({exc}); its units will be recomputed")
-                os.replace(f, f.with_name(f.name + ".corrupt"))
+                self._set_aside(f, exc)
                 continue
             self._check_hash(meta.get("config_hash"), f)
-            tables.append(table.replace_schema_metadata(None))
-            states.update(part_states)
+            if table is not None:
+                tables.append(table.replace_schema_metadata(None))
+            states.update(meta["final_states"])
         return self._unique(concat_rows(tables)), states
+
+    def _set_aside(self, part: Path, error: BaseException) -> None:
+        _log.warning(f"part {str(part)!r} is unreadable ({error}); its units will be recomputed")
+        os.replace(part, part.with_name(part.name + ".corrupt"))
 
     def _unique(self, table: pa.Table) -> pa.Table:
         """One copy of each row key: a part repeats a unit only if a crash hit between two renames."""
@@ -404,7 +435,7 @@ class ResultStore:
         table = as_table(rows)
         with self._mutex:
             self._raise_timer_error()
-            self._buffer.append(table)
+            self._buffer.append((key, table))
             self._buffer_states[key] = final_state
             wait = self.flush_seconds - (time.monotonic() - self._last_flush)
             if len(self._buffer) >= self.flush_points or wait <= 0:
@@ -446,36 +477,95 @@ class ResultStore:
         self._cancel_timer()
         if not self._buffer:
             return
-        meta = {"config_hash": self.config_hash, "final_states": self._buffer_states}
+        # Units with rows, each its own row group, so the final merge can move whole units.
+        units = [(key, rows.num_rows) for key, rows in self._buffer if rows.num_rows]
+        meta = {
+            "config_hash": self.config_hash,
+            "final_states": self._buffer_states,
+            "row_group_units": [key for key, _ in units],
+        }
+        table = with_metadata(concat_rows([rows for _, rows in self._buffer]), meta)
+
+        def write(sink) -> None:
+            with pq.ParquetWriter(sink, table.schema) as writer:
+                offset = 0
+                for _, n_rows in units:
+                    writer.write_table(table.slice(offset, n_rows), row_group_size=n_rows)
+                    offset += n_rows
+
         part = self.parts / f"part-{self._part_counter:06d}-{os.getpid()}.parquet"
-        atomic_write_table(with_metadata(concat_rows(self._buffer), meta), part)
+        _atomic_write(part, write)
         self._part_counter += 1
         self._buffer, self._buffer_states = [], {}
         self._last_flush = time.monotonic()
 
-    def finalize(self) -> pa.Table:
+    def finalize(self, return_rows: bool = True) -> pa.Table | None:
         """Merge parts into the final file atomically, remove the parts and release the lock.
 
-        Returns the rows, sorted by the row columns. A run whose every unit
-        is still in the buffer (no part on disk: it finished within one
-        checkpoint interval of a fresh start) writes the final file straight
-        from memory instead of through a part it would read back.
+        Returns the rows, sorted by the row columns (None when not
+        ``return_rows``). A run whose every unit is still in the buffer (no
+        part on disk: it finished within one checkpoint interval of a fresh
+        start) writes the final file straight from memory instead of through
+        a part it would read back. Otherwise the parts are streamed into the
+        final file one row group at a time (:meth:`_merge_parts`) and the rows
+        asked for are read back from it.
         """
         with self._mutex:
             in_memory = self._part_counter == 0
             if in_memory:
                 self._cancel_timer()
-                table, states = self._unique(concat_rows(self._buffer)), self._buffer_states
+                table = self._unique(concat_rows([rows for _, rows in self._buffer]))
+                states = self._buffer_states
                 self._buffer, self._buffer_states = [], {}
-        if not in_memory:
+        if in_memory:
+            table = sort_rows(table, self.row_columns)
+            atomic_write_table(with_metadata(table, self._final_metadata(states)), self.path)
+        else:
             self.flush()
-            table, states = self.done()
-        table = sort_rows(table, self.row_columns)
-        meta = dict(self.metadata, final_states=states, completed=time.strftime("%Y-%m-%dT%H:%M:%S%z"))
-        atomic_write_table(with_metadata(table, meta), self.path)
+            self._merge_parts()
         shutil.rmtree(self.parts, ignore_errors=True)
         self.close()
-        return table
+        if not return_rows:
+            return None
+        return table if in_memory else read_parquet(self.path).replace_schema_metadata(None)
+
+    def _final_metadata(self, states: dict[str, list[float]]) -> dict[str, Any]:
+        return dict(self.metadata, final_states=states, completed=time.strftime("%Y-%m-%dT%H:%M:%S%z"))
+
+    def _merge_parts(self) -> None:
+        """Write the final file from the parts: streamed by row group, or merged in memory when it must be.
+
+        The stream (:func:`pendsweep.merge.plan_row_groups`) holds the row-key
+        columns of all parts and one row group; its file has the rows, order,
+        schema and metadata of the in-memory merge (read back, the two are
+        equal). When the row groups' key ranges overlap (or a part from an
+        older version does not name its row groups' units) every row is read,
+        duplicates dropped, sorted and written from memory instead.
+        """
+        parts, units, states = [], [], {}
+        try:
+            for f in sorted(self.parts.glob("part-*.parquet")):
+                try:
+                    part = pq.ParquetFile(f, pre_buffer=False)  # pre-buffering keeps every row group read
+                    meta = _part_metadata(part)
+                except (OSError, ValueError, KeyError, TypeError, pa.ArrowException) as exc:
+                    self._set_aside(f, exc)
+                    continue
+                self._check_hash(meta.get("config_hash"), f)
+                parts.append(part)
+                units.append(meta.get("row_group_units"))
+                states.update(meta["final_states"])
+            metadata = self._final_metadata(states)
+            plan = plan_row_groups(parts, units, self.row_columns) if parts else None
+            if plan is None:
+                table = self._unique(concat_rows([part.read().replace_schema_metadata(None) for part in parts]))
+                atomic_write_table(with_metadata(sort_rows(table, self.row_columns), metadata), self.path)
+            else:
+                schema = schema_with_metadata(unified_schema(parts), metadata)
+                _atomic_write(self.path, lambda sink: write_row_groups(sink, parts, plan, schema))
+        finally:
+            for part in parts:
+                part.close()
 
     def close(self) -> None:
         """Release the lock (idempotent). Unflushed units are dropped; parts stay for a later resume."""

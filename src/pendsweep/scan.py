@@ -17,6 +17,13 @@ protocol; :func:`run_scan` does the rest, the same way for every kind:
    finished unit to the store at once and advancing the progress bar;
 5. merges the parts into the final file and releases the lock.
 
+With an output file, rows are not gathered while the scan runs: each unit
+goes to the store, which holds at most its buffer until the next checkpoint,
+and the merge streams the parts into the final file one unit at a time. A
+caller that wants no rows back (``return_rows=False``, e.g. a command that
+summarises a few columns read back from the file) therefore never holds all
+of them; a resumed run reads back only :attr:`Scan.resume_columns`.
+
 Resume is bit-identical when every task computes its units the same way
 whichever units were already done: scans cut their tasks from the full unit
 list by index and rerun a partly finished task whole (see
@@ -183,6 +190,9 @@ class Scan(Protocol):
     desc: str
     #: Columns that identify one row; the final file is sorted by them.
     row_columns: list[str]
+    #: Columns of the finished rows that :meth:`tasks` reads from ``Finished.rows`` on a resume,
+    #: besides the row columns (empty: no finished rows are read back, only their final states).
+    resume_columns: list[str]
 
     def metadata(self) -> dict[str, Any]:
         """Provenance and resolved configuration (:func:`pendsweep.results.run_metadata`)."""
@@ -216,7 +226,8 @@ def run_scan(
     max_work: float | None = DEFAULT_MAX_WORK,
     as_frame: bool = True,
     checkpoint_seconds: float = 1.0,
-) -> pd.DataFrame | pa.Table:
+    return_rows: bool = True,
+) -> pd.DataFrame | pa.Table | None:
     """Run (or resume) ``scan`` and return its rows in order (module docstring).
 
     Parameters
@@ -244,6 +255,11 @@ def run_scan(
         With ``output``: a finished unit is persisted at most this many
         seconds after it finishes (0: at once; each write costs two fsyncs).
         A run killed later loses none of it.
+    return_rows : bool
+        False (with ``output`` only): return None and hold no more rows than
+        the store's buffer and one unit of the merge; read what is needed
+        back from ``output`` (e.g. a few columns with ``pq.read_table(output,
+        columns=...)``).
 
     Raises
     ------
@@ -252,7 +268,7 @@ def run_scan(
     pendsweep.results.OutputLocked
         Another process is writing ``output``.
     """
-    from .columns import sort_rows
+    from .columns import read_parquet, sort_rows
     from .results import ResultStore, concat_rows
 
     check_jobs(n_jobs)
@@ -262,28 +278,40 @@ def run_scan(
             f"--checkpoint-seconds = {checkpoint_seconds!r}: give a finite number of seconds >= 0 (0: write every unit)"
         )
     if output is None:
+        if not return_rows:
+            raise ConfigError("return_rows=False needs an output file to hold the rows")
         rows = _run(scan, None, Finished(concat_rows([]), {}), n_jobs, progress, executor)
     else:
         store = ResultStore(
             output, scan.metadata(), scan.row_columns, overwrite=overwrite, flush_seconds=checkpoint_seconds
         )
         try:
-            rows, states = store.done()
-            if not store.complete:
-                rows = _run(scan, store, Finished(rows, states), n_jobs, progress, executor)
+            if store.complete:
+                rows = read_parquet(output) if return_rows else None
+            else:
+                finished = Finished(*store.done(scan.resume_columns))
+                rows = _run(scan, store, finished, n_jobs, progress, executor, return_rows)
         finally:
             store.close()
+    if rows is None:
+        return None
     if as_frame:
         return scan.order(rows.to_pandas())
     return sort_rows(rows, list(scan.row_columns))
 
 
-def _run(scan: Scan, store: ResultStore | None, finished: Finished, n_jobs, progress, executor) -> pa.Table:
-    """Run the unfinished units; every row (earlier ones included) as one table."""
+def _run(
+    scan: Scan, store: ResultStore | None, finished: Finished, n_jobs, progress, executor, return_rows: bool = True
+) -> pa.Table | None:
+    """Run the unfinished units; every row (earlier ones included) as one table, or None when not ``return_rows``.
+
+    Without a store the rows are gathered here; with one they go only to
+    the store and come back from its final file.
+    """
     from .results import as_table, concat_rows
 
     done = finished.keys
-    tables = [finished.rows]
+    tables = [finished.rows]  # gathered only without a store
     tasks, local_jobs = scan.tasks(finished, n_jobs)
     bar = progress_bar(progress, total=scan.n_units(), initial=len(done), unit="pt", desc=scan.desc)
     try:
@@ -292,8 +320,9 @@ def _run(scan: Scan, store: ResultStore | None, finished: Finished, n_jobs, prog
                 continue  # recomputed only to rebuild its task as the first run built it
             done.add(unit.key)
             rows = as_table(unit.rows)
-            tables.append(rows)
-            if store is not None:
+            if store is None:
+                tables.append(rows)
+            else:
                 store.add(rows, unit.key, unit.state)
             bar.update(1)
     except BaseException:
@@ -302,8 +331,8 @@ def _run(scan: Scan, store: ResultStore | None, finished: Finished, n_jobs, prog
         raise
     finally:
         bar.close()
-    if store is not None:  # finalize writes what is still buffered, straight from memory
-        return store.finalize()
+    if store is not None:
+        return store.finalize(return_rows)
     return concat_rows(tables)
 
 

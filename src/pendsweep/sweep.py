@@ -474,6 +474,8 @@ class SweepScan:
     config: SweepConfig
     task_points: int = 256
     row_columns: list[str] = field(default_factory=lambda: KEY_COLUMNS + ["period"])
+    #: A resume reads back each finished unit's status and swing (:func:`_resume_info`).
+    resume_columns: list[str] = field(default_factory=lambda: ["status", "theta_absmax"])
 
     def __post_init__(self) -> None:
         self.backend = self.config.make_backend()

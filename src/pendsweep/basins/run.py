@@ -256,6 +256,7 @@ class BasinScan:
     chunk_starts: int = CHUNK_STARTS
     desc: str = "basins"
     row_columns: list[str] = field(default_factory=lambda: list(ROW_COLUMNS))
+    resume_columns: list[str] = field(default_factory=list)  # a resume needs only the finished keys
 
     def metadata(self) -> dict[str, Any]:
         from ..results import run_metadata
@@ -307,7 +308,8 @@ def run_basins(
     chunk_starts: int = CHUNK_STARTS,
     max_work: float | None = None,
     checkpoint_seconds: float = 1.0,
-) -> pd.DataFrame:
+    return_rows: bool = True,
+) -> pd.DataFrame | None:
     """Run (or resume) a basin computation; return one row per (point, start).
 
     Starts go in units of ``chunk_starts`` (one parameter point each), run
@@ -317,7 +319,9 @@ def run_basins(
     unit runs the batched kernel on all cores (units one after another
     locally, in parallel on Dask); on other backends a unit's starts run on
     ``n_jobs`` threads. ``max_work`` limits the work estimate, an upper
-    bound (every start to the cap); None: no limit.
+    bound (every start to the cap); None: no limit. ``return_rows=False``
+    (with ``output``): return None and never hold all rows (read the columns
+    needed back from ``output``).
     """
     from ..scan import run_scan
 
@@ -331,4 +335,5 @@ def run_basins(
         executor=executor,
         max_work=max_work,
         checkpoint_seconds=checkpoint_seconds,
+        return_rows=return_rows,
     )

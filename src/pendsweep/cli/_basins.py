@@ -19,6 +19,8 @@ from ._checks import FIGURE_SUFFIXES, check_output, key_values
 from ._executor import apply_options, checkpoint_option, executor_options, max_work, work_options
 from ._sweep_options import DEVICE_OPTION, load_model_file
 
+#: Columns of a map's rows that its counts and image need (read back from the file, not held by the run).
+MAP_SUMMARY_COLUMNS = ["ix", "iy", "motion", "theta_absmax"]
 _MODEL_FLAGS = (("alpha", "alpha", "N"), ("fe", "fe", "Hz"), ("M", "M_", "kg"), ("C", "C_", "kg/s"), ("K", "K_", "N/m"))
 
 
@@ -421,6 +423,8 @@ def map_command(x, y, **kw):
     \b
     Example: pendsweep map alpha fe --alpha 0:45:200 --fe 2.0:3.0:200 --plot map.png
     """
+    import pyarrow.parquet as pq
+
     from ..executors import make_executor
     from ..figures.basins import plot_map
     from ..gpu import require_cuda
@@ -449,7 +453,7 @@ def map_command(x, y, **kw):
     t0 = time.perf_counter()
     runner = make_executor(kw["executor"], kw["scheduler"])
     try:
-        df = run_map(
+        run_map(
             config,
             output,
             progress=_progress(kw["progress"]),
@@ -457,9 +461,12 @@ def map_command(x, y, **kw):
             executor=runner,
             checkpoint_seconds=kw["checkpoint_seconds"],
             max_work=max_work(kw["max_work"] or per_start_max_work(kw.get("backend", "emulated")), kw["yes"]),
+            return_rows=False,
         )
     finally:
         runner.close()
+    # The counts and the image need four columns: a 1000 x 1000 map never holds the other twenty.
+    df = pq.read_table(output, columns=MAP_SUMMARY_COLUMNS).to_pandas()
     counts = ", ".join(f"{n} {m}" for m, n in df["motion"].value_counts().items())
     click.echo(f"{len(df)} cells ({counts}) in {time.perf_counter() - t0:.1f} s -> {output}")
     if kw["plot_path"] is not None:
