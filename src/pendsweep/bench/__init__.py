@@ -7,7 +7,8 @@ JIT compilation is always excluded: each benchmark warms its kernels first.
 """
 
 from . import (  # noqa: F401  (registers the benchmarks)
-    basins,  # noqa: F401  (basin map with early stop, issue 14)
+    basins,  # noqa: F401  (basins and map against their kernel, issue 23)
+    cluster,  # noqa: F401  (a basin map on 1 and 2 Dask workers, issue 23)
     command,  # noqa: F401  (whole commands against a plain script)
     continuation,  # noqa: F401  (continuation against finite differences and sweeps)
     core,  # noqa: F401  (registers benchmarks)

@@ -1,18 +1,15 @@
-"""A basin map through ``--executor dask`` on 1 and on 2 local single-threaded workers.
+"""A basin map through ``--executor dask`` on 1 and on 2 local single-threaded workers (entry ``dask``).
 
 Starts a ``dask scheduler`` and ``dask worker`` processes on 127.0.0.1 (as
 tests/test_cluster.py does), runs ``pendsweep basins --grid NxN`` against
 them as a client process and reports, per worker count: wall time, starts
 per second per worker, the client's peak resident memory, the 2/1 scaling
-and the time a 1000 x 1000 map would take at the measured rate.
-
-Usage: ``.venv/bin/python bench/dask_basins.py [--grid 300] [--max-periods 200]``
+and the time a 1000 x 1000 map would take at the measured rate. Without the
+``dask`` command line the entry says so.
 """
 
 from __future__ import annotations
 
-import argparse
-import json
 import os
 import shutil
 import signal
@@ -23,8 +20,9 @@ import tempfile
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-DASK = shutil.which("dask", path=os.path.dirname(sys.executable)) or "dask"
+from .registry import benchmark
+
+DASK = shutil.which("dask", path=os.path.dirname(sys.executable)) or shutil.which("dask")
 
 
 def _free_port() -> int:
@@ -49,7 +47,7 @@ def run(workers: int, grid: int, max_periods: int, folder: Path) -> dict:
     port = _free_port()
     address = f"tcp://127.0.0.1:{port}"
     # One numba thread per worker: the batched kernel would otherwise use every core in each worker.
-    env = dict(os.environ, NUMBA_NUM_THREADS="1", PYTHONPATH=str(ROOT / "src"))
+    env = dict(os.environ, NUMBA_NUM_THREADS="1")
     cluster = [
         [DASK, "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"],
         [DASK, "worker", address, "--nworkers", str(workers), "--nthreads", "1", "--host", "127.0.0.1"]
@@ -86,25 +84,21 @@ def run(workers: int, grid: int, max_periods: int, folder: Path) -> dict:
     }
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--grid", type=int, default=300, help="starts per side of the map")
-    parser.add_argument("--max-periods", type=int, default=200, help="forcing periods after which a start stops")
-    args = parser.parse_args()
+@benchmark("dask")
+def bench_dask(quick: bool) -> dict:
+    """Starts per second per worker on 1 and 2 local workers, the 2/1 scaling and the client's peak memory."""
+    if DASK is None:
+        return {"note": "the dask command line is not installed: pip install 'pendsweep[cluster]'"}
+    grid, max_periods = (100, 100) if quick else (300, 200)
     with tempfile.TemporaryDirectory() as folder:
-        runs = [run(workers, args.grid, args.max_periods, Path(folder)) for workers in (1, 2)]
+        runs = [run(workers, grid, max_periods, Path(folder)) for workers in (1, 2)]
     one, two = runs
-    scaling = one["wall_s"] / two["wall_s"]
-    report = {
-        "grid": f"{args.grid}x{args.grid}",
-        "max_periods": args.max_periods,
+    return {
+        "grid": f"{grid}x{grid}",
+        "max_periods": max_periods,
+        "load_average_1min_at_start": os.getloadavg()[0],
         "runs": runs,
-        "scaling_2_over_1": round(scaling, 2),
+        "scaling_2_over_1": one["wall_s"] / two["wall_s"],
         # The wall time includes start-up and the final merge, so the estimate errs on the long side.
-        "estimated_1000x1000_s_on_2_workers": round(1e6 / (two["starts_per_s_per_worker"] * 2), 0),
+        "estimated_1000x1000_s_on_2_workers": 1e6 / (two["starts_per_s_per_worker"] * 2),
     }
-    print(json.dumps(report, indent=1))
-
-
-if __name__ == "__main__":
-    main()
