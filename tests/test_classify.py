@@ -8,6 +8,7 @@ import pytest
 
 from pendsweep.backends import make_backend
 from pendsweep.classify import (
+    EXTEND_PERIODS,
     Evidence,
     classify_records,
     classify_run,
@@ -213,9 +214,10 @@ def test_batched_evidence_gives_the_labels_of_point_by_point_evidence():
         backend.run_point(q, backend.initial_state(q, 0.0, 0.0, th, thd), 100, 20)
         for q, (_, _, th, thd) in zip(params, cases)
     ]
-    fast = classify_runs(backend, params, runs)
-    slow = classify_runs(PointByPoint(), params, runs)
+    fast = classify_runs(backend, params, runs, evidence="full")
+    slow = classify_runs(PointByPoint(), params, runs)  # a backend without the batched kernel gets full evidence
     assert [m.label for m in fast] == [m.label for m in slow]
+    assert all(m.extension_periods == EXTEND_PERIODS for m in slow if m.lyapunov_pair)
     assert {m.label for m in fast} >= {"chaotic", "rotating", "transient", "periodic-2"}
     for f, s in zip(fast, slow):
         if f.label != "chaotic" and math.isfinite(s.lyapunov):
@@ -240,7 +242,7 @@ def fresh_dense_sweep_points(indices):
 def test_staged_evidence_labels_chaotic_points_as_full_evidence_does():
     """Chaotic points of the dense fresh sweep: tumbling ones (Lyapunov pair alone) and swinging ones
     (an extension that never repeats, then the pair) keep their label with staged evidence."""
-    from pendsweep.classify import EXTEND_PERIODS, classify_runs
+    from pendsweep.classify import classify_runs
 
     # 38.1, 41.6 and 44.9 N tumble in the record; 42.3, 42.6 and 43.7 N swing.
     backend, params, runs = fresh_dense_sweep_points([762, 832, 846, 852, 874, 898])

@@ -58,8 +58,10 @@ only the exponent tells apart). A swinging record is extended in rounds of
 round, a point whose last :data:`TAIL_PERIODS` extension sections repeat
 (:func:`section_period`) stops and is ``transient``, without a Lyapunov
 pair. Only extensions that never repeat get the pair. ``evidence="full"``
-runs the whole extension and the pair for every undecided point. The two
-differ only on a chaotic transient that settles within the extension:
+runs the whole extension and the pair for every undecided point, and so
+does every backend but the batched emulated one (its rounds continue a run
+exactly; a backend with sensor noise would replay its noise sequence in
+every round). The two differ only on a chaotic transient that settles within the extension:
 full calls it ``chaotic`` (from the record's exponent), staged calls it
 ``transient``.
 """
@@ -504,7 +506,9 @@ def classify_runs(
         return motions
     if not backend.restartable:  # it cannot be re-run from a state: no evidence beyond the record
         return [Motion("transient") if m is None else m for m in motions]
-    if evidence == "full":
+    # Staged rounds continue a run from its last state; a backend with sensor noise would restart its
+    # noise sequence every round (the same 25-period noise over and over), so it gets the full evidence.
+    if evidence == "full" or not backend.batched:
         found = gather_evidence(
             backend, [params[j] for j in undecided], [runs[j] for j in undecided], [scales[j] for j in undecided],
             rest_threshold,
