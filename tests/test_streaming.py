@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import functools
+import json
 import shutil
 import threading
+import time
 import tracemalloc
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -116,8 +118,11 @@ def test_a_killed_basin_run_resumes_to_the_identical_file(tmp_path):
     parts = _parts_of(out)
     assert len(parts) == 5 and not out.exists()
     shutil.copy(parts[1], parts[-1].with_name("part-000099-1.parquet"))
+    started = json.loads((out.with_name(out.name + ".parts") / "config.json").read_text())["created"]
+    time.sleep(1.1)  # a resume a second later keeps the first start's time
     assert run_basins(config, out, chunk_starts=16, return_rows=False) is None
     _assert_same_file(out, whole)
+    assert read_metadata(out)["created"] == started
 
 
 @dataclass

@@ -364,6 +364,8 @@ class ResultStore:
                 )
             else:
                 self._check_hash(stored.get("config_hash") if isinstance(stored, dict) else None, config_file)
+                if isinstance(stored.get("created"), str):  # a resumed run keeps the time it was first started
+                    self.metadata = dict(self.metadata, created=stored["created"])
         self.parts.mkdir(exist_ok=True)
         text = json.dumps(self.metadata, sort_keys=True).encode()
         _atomic_write(config_file, lambda fh: fh.write(text))
