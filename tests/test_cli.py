@@ -332,6 +332,36 @@ def test_no_quantity_is_spelled_two_ways():
     assert not found, found
 
 
+def test_every_command_writing_one_file_takes_it_as_minus_o():
+    """A positional output file (synth OUT, trace OUTPUT) is the older spelling kept beside -o/--output."""
+    import click
+
+    positional_only = [
+        name
+        for name, command in sorted(main.commands.items())
+        for param in command.params
+        if isinstance(param, click.Argument) and param.name in ("out", "output") and param.required
+    ]
+    assert not positional_only, positional_only
+
+
+@pytest.mark.parametrize(
+    "command, extra",
+    [("synth", ["--duration", "2"]), ("trace", ["--periods", "2", "--transient-periods", "0"])],
+)
+def test_an_output_given_positionally_or_as_minus_o_and_never_both(tmp_path, command, extra):
+    first, second = tmp_path / "a.parquet", tmp_path / "b.parquet"
+    new = CliRunner().invoke(main, [command, "-o", str(first), *extra])
+    assert new.exit_code == 0 and first.exists(), new.output
+    old = CliRunner().invoke(main, [command, str(second), *extra])
+    assert old.exit_code == 0 and second.exists(), old.output
+    both = CliRunner().invoke(main, [command, str(first), "-o", str(second), *extra])
+    assert both.exit_code == 2 and "give the output once" in both.output
+    neither = CliRunner().invoke(main, [command, *extra])
+    assert neither.exit_code == 2 and "give -o/--output FILE" in neither.output
+    assert len(neither.output.strip().splitlines()) == 1
+
+
 def test_continue_takes_output_and_its_old_json_with_a_warning(tmp_path):
     args = ["continue", "alpha", "--from", "30", "--to", "30.5", "--max-points", "2"]
     new = CliRunner().invoke(main, [*args, "-o", str(tmp_path / "a.json")])

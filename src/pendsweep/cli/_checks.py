@@ -49,6 +49,18 @@ def check_output(path: Path | None, option: str, suffixes: Iterable[str] = ()) -
     return path
 
 
+def positional_or_output(positional: Path | None, output: Path | None, argument: str) -> tuple[Path, str]:
+    """The output file given either as the positional ``argument`` (the old spelling) or as ``-o/--output``.
+
+    Returns the path and how it was spelled (for messages). Exactly one must be given (ConfigError, exit 2).
+    """
+    if positional is not None and output is not None:
+        raise ConfigError(f"give the output once: {argument} {str(positional)!r} or -o {str(output)!r}, not both")
+    if positional is None and output is None:
+        raise ConfigError(f"no output file: give -o/--output FILE (or {argument} as the first argument)")
+    return (output, "-o") if output is not None else (positional, argument)
+
+
 def check_output_dir(path: Path | None, option: str) -> Path | None:
     """Like :func:`check_output` for an output folder (created later by the command)."""
     if path is None:

@@ -10,7 +10,7 @@ import click
 
 from ..errors import ConfigError
 from ._app import ANGLE, FINITE, PATH, RATE, SEED, FiniteFloat, main
-from ._checks import check_input, check_memory, check_output, check_output_dir
+from ._checks import check_input, check_memory, check_output, check_output_dir, positional_or_output
 from ._executor import apply_options, work_options
 from ._executor import max_work as work_limit
 
@@ -133,7 +133,8 @@ RECORD_BYTES_PER_SAMPLE = 320
 
 
 @main.command()
-@click.argument("out", type=PATH)
+@click.argument("out", type=PATH, required=False)
+@click.option("-o", "--output", type=PATH, default=None, help="Record to write, .csv or .parquet (or as OUT).")
 @click.option(
     "--kind",
     type=click.Choice(["free_decay", "forced", "substructured"]),
@@ -193,20 +194,22 @@ RECORD_BYTES_PER_SAMPLE = 320
     default=None,
     help="Forced and substructured records: a second force tone AMPLITUDE [N] FREQUENCY [Hz].",
 )
-def synth(out, kind, effects, params, params_old, duration, rate, seed, theta_init, thetadot_init, theta_init_old,
-          thetadot_init_old, transient, tone2):  # fmt: skip
+def synth(out, output, kind, effects, params, params_old, duration, rate, seed, theta_init, thetadot_init,
+          theta_init_old, thetadot_init_old, transient, tone2):  # fmt: skip
     """Write a seeded measured-like record (format v1) with hidden effects.
 
-    OUT ends in .csv (a .json sidecar is written next to it) or .parquet.
+    The record, -o FILE (or OUT, the older positional spelling), ends in .csv
+    (a .json sidecar is written next to it) or .parquet.
     """
     from ..data import write_record
     from ..diagnose import synthesize
     from ..params import FIG9_PO, TABLE_IV
     from ._checks import model_sets
 
-    check_output(out, "OUT", (".csv", ".parquet"))
+    out, spelled = positional_or_output(out, output, "OUT")
+    check_output(out, spelled, (".csv", ".parquet"))
     if Path(out).suffix.lower() == ".csv":
-        check_output(Path(out).with_suffix(".json"), "OUT (its .json sidecar)")
+        check_output(Path(out).with_suffix(".json"), f"{spelled} (its .json sidecar)")
     check_memory(duration * rate * RECORD_BYTES_PER_SAMPLE, f"a record of {duration:g} s at {rate:g} Hz")
     theta_init = _one_of(theta_init, theta_init_old, "--theta0", "--theta-init", 1.0)
     thetadot_init = _one_of(thetadot_init, thetadot_init_old, "--thetadot0", "--thetadot-init", 0.0)

@@ -9,7 +9,15 @@ import click
 from ..errors import ConfigError
 from ..params import ModelParams
 from ._app import ANGLE, FINITE, PATH, RATE, FiniteFloat, LazyChoice, main
-from ._checks import FIGURE_SUFFIXES, check_input, check_memory, check_output, key_values, model_sets
+from ._checks import (
+    FIGURE_SUFFIXES,
+    check_input,
+    check_memory,
+    check_output,
+    key_values,
+    model_sets,
+    positional_or_output,
+)
 from ._executor import apply_options, work_options
 from ._executor import max_work as work_limit
 
@@ -30,7 +38,8 @@ TRACE_BYTES_PER_ROW = 400
 
 
 @main.command("trace")
-@click.argument("output", type=PATH)
+@click.argument("positional_output", metavar="[OUTPUT]", type=PATH, required=False)
+@click.option("-o", "--output", type=PATH, default=None, help="Trace to write, .parquet (or as OUTPUT).")
 @click.option("--alpha", type=FINITE, default=None, help="Forcing amplitude [N] (default 5, Fig. 9 PO).")
 @click.option("--fe", type=FINITE, default=None, help="Forcing frequency [Hz] (default 2.2).")
 @click.option("--M", "M_", type=FINITE, default=None, help="Oscillator mass M = M1 + M2 [kg] (default 10.9).")
@@ -93,10 +102,10 @@ TRACE_BYTES_PER_ROW = 400
 )
 @apply_options(work_options())
 def trace_command(
-    output, alpha, fe, M_, C_, sets, backend, backend_opts, periods, transient_periods, stride, y0, theta0, thetadot0,
+    positional_output, output, alpha, fe, M_, C_, sets, backend, backend_opts, periods, transient_periods, stride, y0, theta0, thetadot0,
     max_work, yes,
 ):  # fmt: skip
-    """Write a time series of one hybrid run to OUTPUT (parquet).
+    """Write a time series of one hybrid run to -o FILE (parquet; or OUTPUT, the older positional spelling).
 
     Substructured columns (SI): t, Fe, y (= y*), ydot, command, x, xdot, x_meas,
     theta (encoder, theta_x), theta_true, thetadot, Fs (load cell), Fs_true,
@@ -106,7 +115,8 @@ def trace_command(
     from ..hybrid import run_trace, write_trace
     from ..scan import Work, check_work
 
-    check_output(output, "OUTPUT", (".parquet",))
+    output, spelled = positional_or_output(positional_output, output, "OUTPUT")
+    check_output(output, spelled, (".parquet",))
     params = _model(alpha, fe, M_, C_, sets)
     b = make_backend(backend, **key_values(backend_opts, "--backend-option"))
     rows = periods * b.steps_per_period(params) / stride
