@@ -23,8 +23,8 @@ quasi-periodic rotation, or a cycle longer than 8) is recognised by a
 of the last :data:`ROTATION_WINDOW` periods. It is reported with period 0.
 Chaotic tumbling reverses or skips turns irregularly and does not pass.
 
-:func:`settling` does this for many runs at once (vectorised over a leading
-axis) and also returns *when* each run settled: the first period of the
+:func:`settling` does this for many runs at once (one compiled pass per run,
+:mod:`pendsweep.kernels._settle`) and also returns *when* each run settled: the first period of the
 stretch, ending at the record's end, over which the repeat holds. It is the
 settling detector of the basin engine (:mod:`pendsweep.basins`), and meant
 for an adaptive transient in sweeps (stop integrating a point once it has

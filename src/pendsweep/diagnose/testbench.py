@@ -458,12 +458,17 @@ def draw_case(seed: int, category: str | None = None, kind: str | None = None) -
 #: Single effects of servo-rig records: cause -> (mode, lo, hi) as :data:`RANGES`; ``rig_x`` multiplies the
 #: servo's frequency, ``abs`` sets the actuator's gain, ``add`` adds to the rig's true effective delay.
 RIG_RANGES = {
-    "oscillator_damping": ("x", 1.2, 1.5),
-    "oscillator_stiffness": ("x", 1.04, 1.10),
-    "oscillator_mass": ("x", 1.05, 1.12),
-    "spring_hardening": ("abs", 8e5, 2e6),
-    "forcing_gain": ("x", 1.05, 1.15),
-    "pendulum_length": ("x", 1.03, 1.08),
+    **{  # the numerical model and the pendulum: as on forced records
+        cause: RANGES["forced"][cause]
+        for cause in (
+            "oscillator_damping",
+            "oscillator_stiffness",
+            "oscillator_mass",
+            "spring_hardening",
+            "forcing_gain",
+            "pendulum_length",
+        )
+    },  # fmt: skip
     "platform_mass": ("x", 1.3, 1.6),
     "platform_damping": ("x", 1.3, 1.6),
     "force_sensor_gain": ("x", 1.15, 1.3),
