@@ -24,7 +24,7 @@ import pandas as pd
 
 from .basins import CHUNK_STARTS, ROUND_PERIODS, EmulatedMap, settle_runs
 from .errors import ConfigError
-from .gpu import check_device
+from .gpu import GPU_BATCH_POINTS, check_device
 from .params import PARAM_SPECS, ModelParams, check_value
 from .status import Status
 
@@ -183,7 +183,9 @@ class MapScan:
 
     def _chunks(self) -> list[np.ndarray]:
         n = self.config.cells
-        return [np.arange(first, min(first + self.chunk_cells, n)) for first in range(0, n, self.chunk_cells)]
+        # A GPU needs ~1e5 threads to be busy: its units hold at least GPU_BATCH_POINTS cells.
+        size = max(self.chunk_cells, GPU_BATCH_POINTS if self.config.device == "cuda" else 1)
+        return [np.arange(first, min(first + size, n)) for first in range(0, n, size)]
 
     def n_units(self) -> int:
         return len(self._chunks())

@@ -82,8 +82,52 @@ def chunk_bounds(steps: np.ndarray, chunk: int) -> np.ndarray:
     return np.array(sorted(cuts), dtype=np.int64)
 
 
+class ParameterColumns(NamedTuple):
+    """What the kernels need of each point's :class:`~pendsweep.params.ModelParams`, at one requested step.
+
+    Attributes
+    ----------
+    kernel_params : float64[n, N_PARAMS]
+        ``ModelParams.kernel_array()`` of each point.
+    alpha, fe : float64[n]
+        Forcing amplitude [N] and frequency [Hz].
+    steps : int64[n]
+        RK4 steps per forcing period at the requested step.
+    """
+
+    kernel_params: np.ndarray
+    alpha: np.ndarray
+    fe: np.ndarray
+    steps: np.ndarray
+
+    def take(self, index: np.ndarray) -> ParameterColumns:
+        """The columns of the points ``index`` (repeats allowed)."""
+        return ParameterColumns(*(column[index] for column in self))
+
+
+def parameter_columns(params: Sequence[ModelParams] | ParameterColumns, dt: float) -> ParameterColumns:
+    """Per-point kernel inputs at the requested step ``dt`` [s], built once per distinct parameter set.
+
+    Basins pass one set hundreds of thousands of times a round, so sets are
+    told apart by identity. Columns already built (at the same ``dt``) are
+    returned as they are.
+    """
+    if isinstance(params, ParameterColumns):
+        return params
+    slot: dict[int, int] = {}  # id of a parameter set -> its row in the table, in order of first appearance
+    index = np.fromiter((slot.setdefault(id(q), len(slot)) for q in params), dtype=np.int64, count=len(params))
+    _, first = np.unique(index, return_index=True)
+    ordered = [params[i] for i in first]
+    return ParameterColumns(
+        np.array([q.kernel_array() for q in ordered]).reshape(len(ordered), -1),
+        np.array([q.alpha for q in ordered], dtype=np.float64),
+        np.array([q.fe for q in ordered], dtype=np.float64),
+        np.array([steps_per_period(q.fe, dt) for q in ordered], dtype=np.int64),
+    ).take(index)
+
+
 def run_batch(
-    params: Sequence[ModelParams],
+    params: Sequence[ModelParams] | ParameterColumns,
     states: np.ndarray,
     transient_periods: int,
     record_periods: int,
@@ -99,8 +143,9 @@ def run_batch(
 
     Parameters
     ----------
-    params : sequence of ModelParams, length n
-        One parameter set per point (any of them may differ, ``fe`` included).
+    params : sequence of ModelParams, length n, or ParameterColumns
+        One parameter set per point (any of them may differ, ``fe`` included),
+        or their columns built by :func:`parameter_columns` at this ``dt``.
     states : array_like, shape (n, 4)
         Initial ``(y [m], ydot [m/s], theta [rad], thetadot [rad/s])``.
     transient_periods, record_periods : int
@@ -127,7 +172,8 @@ def run_batch(
         In the order of ``params``. Agrees with the scalar kernel to about
         1e-12 relative on periodic motion (tests check 1e-9).
     """
-    n = len(params)
+    columns = parameter_columns(params, dt)
+    n = len(columns.steps)
     if signum not in ("step", "stage"):
         raise ConfigError(f"signum = {signum!r}; choose 'step' or 'stage'")
     for name, v, lo in (
@@ -140,10 +186,8 @@ def run_batch(
     check_device(device, precision)
     if device == "cuda" and n:
         return BatchRun(*run_batch_cuda(
-            np.stack([q.kernel_array() for q in params]), np.array([q.alpha for q in params]),
-            np.array([q.fe for q in params]), np.array([steps_per_period(q.fe, dt) for q in params], dtype=np.int64),
-            np.asarray(states, dtype=np.float64).reshape(n, 4), int(transient_periods), int(record_periods),
-            sgn_per_stage=signum == "stage", precision=precision,
+            *columns, np.asarray(states, dtype=np.float64).reshape(n, 4),
+            int(transient_periods), int(record_periods), sgn_per_stage=signum == "stage", precision=precision,
         ))  # fmt: skip
     lanes = Lanes(
         transient=np.full(n, int(transient_periods), dtype=np.int64),
@@ -153,12 +197,12 @@ def run_batch(
         d0=1.0,
         rest=0.0,
     )
-    run, _ = run_lanes(params, states, lanes, int(record_periods), dt=dt, signum=signum, chunk=chunk, threads=threads)
+    run, _ = run_lanes(columns, states, lanes, int(record_periods), dt=dt, signum=signum, chunk=chunk, threads=threads)
     return run
 
 
 def run_lanes(
-    params: Sequence[ModelParams],
+    params: Sequence[ModelParams] | ParameterColumns,
     states: np.ndarray,
     lanes: Lanes,
     record_periods: int,
@@ -179,7 +223,8 @@ def run_lanes(
     Raises ``ValueError`` when a lane would record more than
     ``record_periods`` periods or a twin run longer than ``stretch_periods``.
     """
-    n = len(params)
+    kernel_params, alpha, fe, steps = parameter_columns(params, dt)
+    n = len(steps)
     total = np.asarray(lanes.total, dtype=np.int64)
     partner = np.asarray(lanes.partner, dtype=np.int64)
     if n and (total - np.asarray(lanes.transient)).max() > int(record_periods):
@@ -193,11 +238,6 @@ def run_lanes(
     done = np.zeros(n, dtype=np.int64)
     if n == 0:
         return BatchRun(records, states.copy(), status, done), stretch
-    # Per distinct parameter set, not per lane: basins and maps pass one set thousands of times a round.
-    distinct = {id(q): q for q in params}
-    columns = {key: (q.kernel_array(), q.alpha, q.fe, steps_per_period(q.fe, dt)) for key, q in distinct.items()}
-    lane_columns = [columns[id(q)] for q in params]
-    steps = np.array([c[3] for c in lane_columns], dtype=np.int64)
     # Lanes sorted by steps per period (chunks share forcing tables), then by
     # length, so that a chunk's lanes finish together (its dead lanes are
     # still stepped until its longest one ends); each twin right after its partner.
@@ -214,9 +254,9 @@ def run_lanes(
         d0=float(lanes.d0),
         rest=float(lanes.rest),
     )
-    p = np.ascontiguousarray(np.stack([lane_columns[i][0] for i in order], axis=1))
-    alpha = np.array([lane_columns[i][1] for i in order])
-    fe = np.array([lane_columns[i][2] for i in order])
+    p = np.ascontiguousarray(kernel_params[order].T)
+    alpha = np.ascontiguousarray(alpha[order])
+    fe = np.ascontiguousarray(fe[order])
     sorted_steps = np.ascontiguousarray(steps[order])
     soa = np.ascontiguousarray(states[order].T)
     out = np.full_like(records, np.nan)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
@@ -11,7 +12,7 @@ import numpy as np
 
 from ..attractors import MATCH_TOL, ROTATION_WINDOW, SETTLE_WINDOW, section_scales_many, settling
 from ..classify import MAX_PERIOD
-from ..kernels import STATUS_DIVERGED, STATUS_OK, STATUS_UNSTABLE
+from ..kernels import N_RECORD_COLUMNS, STATUS_DIVERGED, STATUS_OK, STATUS_UNSTABLE
 from ..kernels._layout import REC_THETA_ABSMAX, REC_THETADOT_SEC, REC_Y_SEC
 from ..kernels._settle import update_near_since
 from ..params import ModelParams
@@ -71,23 +72,33 @@ class EmulatedMap:
     device: str = "cpu"
     precision: str = "float64"
 
-    def _params_of(self, ids: np.ndarray) -> list[ModelParams]:
-        return [self.params[0]] * len(ids) if len(self.params) == 1 else [self.params[i] for i in ids]
+    @functools.cached_property
+    def _columns(self):
+        """The kernel's parameter columns of ``params``, built once: a round indexes them instead of the sets."""
+        from ..backends._batch import parameter_columns
+
+        return parameter_columns(self.params, self.dt)
 
     def advance(self, states, periods, ids):
         from ..backends._batch import run_batch
 
+        rows = np.zeros(len(ids), dtype=np.int64) if len(self.params) == 1 else np.asarray(ids, dtype=np.int64)
         run = run_batch(
-            self._params_of(ids), states, 0, periods, dt=self.dt, signum=self.signum, threads=self.threads,
+            self._columns.take(rows), states, 0, periods, dt=self.dt, signum=self.signum, threads=self.threads,
             device=self.device, precision=self.precision,
         )  # fmt: skip
         return run.records, run.states, run.status
 
+    @functools.cached_property
+    def _frequencies(self) -> np.ndarray:
+        """(omega_e, omega_p) [rad/s] of each parameter set, shape (len(params), 2)."""
+        return np.array([(q.omega_e, q.omega_p) for q in self.params])
+
     def scales_for(self, ids: np.ndarray, records: np.ndarray) -> np.ndarray:
-        ps = self._params_of(ids)
-        we = np.array([p.omega_e for p in ps]) if len(self.params) > 1 else self.params[0].omega_e
-        wp = np.array([p.omega_p for p in ps]) if len(self.params) > 1 else self.params[0].omega_p
-        return section_scales_many(records, we, wp)
+        if len(self.params) == 1:
+            return section_scales_many(records, *self._frequencies[0])
+        frequencies = self._frequencies[np.asarray(ids, dtype=np.int64)]
+        return section_scales_many(records, frequencies[:, 0], frequencies[:, 1])
 
 
 @dataclass(frozen=True)
@@ -241,7 +252,17 @@ def settle_runs(
         states=states,
     )
     active = np.arange(k)
-    history = np.empty((k, 0, 8))
+    # The buffer of a round (history, then the new records) lives in one of two stores, and the next round's
+    # history is gathered into the other: a chunk of 1e5 starts (a GPU's) holds about 1 GB of buffer, and
+    # allocating it anew every round cost more than the GPU's integration.
+    capacity = k * (history_rows + round_periods) * N_RECORD_COLUMNS
+    stores = (np.empty(capacity), np.empty(capacity))
+    current = 0  # the store holding this round's buffer
+
+    def buffer_in(store: int, runs: int, rows: int) -> np.ndarray:
+        return stores[store][: runs * rows * N_RECORD_COLUMNS].reshape(runs, rows, N_RECORD_COLUMNS)
+
+    buffer = buffer_in(current, k, min(round_periods, max_periods))
     # near_since[i, n-1]: first period since which run i's section has stayed within MATCH_TOL
     # of repeating after n periods (updated every round, so no long history is kept).
     max_period = settle_options.get("max_period", MAX_PERIOD)
@@ -250,7 +271,7 @@ def settle_runs(
     while active.size and done < max_periods:
         periods = min(round_periods, max_periods - done)
         records, new_states, status = system.advance(states[active], periods, ids[active])
-        buffer = np.concatenate([history, records], axis=1)
+        buffer[:, buffer.shape[1] - periods :] = records
         first_row = done + periods - buffer.shape[1]  # periods elapsed before the buffer's first row
         done += periods
         states[active] = new_states
@@ -275,12 +296,17 @@ def settle_runs(
         out.escape_periods[idx] = np.where(ok, np.minimum(near_onset, out.settle_periods[idx]), -1)
         out.scales[idx] = scales[f]
         out.theta_absmax[idx] = np.fmax.reduce(buffer[f, -window:, REC_THETA_ABSMAX], axis=1)
-        for j, i in zip(f[ok], idx[ok]):
-            n = max(int(found.period[j]), 1)
-            out.cycle[i, :n] = buffer[j, buffer.shape[1] - n :, _SEC]
-        keep = ~finished
+        cycle_length = np.maximum(found.period[f], 1)
+        for n in np.unique(cycle_length[ok]):
+            mine = ok & (cycle_length == n)
+            out.cycle[idx[mine], :n] = buffer[f[mine], buffer.shape[1] - n :, _SEC]
+        keep = np.flatnonzero(~finished)
         active = active[keep]
-        history = buffer[keep, -history_rows:]
+        held = min(history_rows, buffer.shape[1])  # the next round's history: the last rows of this buffer
+        current = 1 - current
+        following = buffer_in(current, keep.size, held + min(round_periods, max(max_periods - done, 0)))
+        np.take(buffer[:, buffer.shape[1] - held :], keep, axis=0, out=following[:, :held], mode="clip")
+        buffer = following
         if on_round is not None:
             on_round(int(f.size))
     return out

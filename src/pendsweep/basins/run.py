@@ -265,10 +265,12 @@ class BasinScan:
 
     def _chunks(self) -> list[tuple[int, np.ndarray]]:
         n = self.config.starts
+        # A GPU needs ~1e5 threads to be busy: its units hold at least the backend's minimum batch.
+        size = max(self.chunk_starts, self.config.make_backend().min_batch_points)
         return [
-            (point, np.arange(first, min(first + self.chunk_starts, n)))
+            (point, np.arange(first, min(first + size, n)))
             for point in range(len(self.config.values))
-            for first in range(0, n, self.chunk_starts)
+            for first in range(0, n, size)
         ]
 
     def n_units(self) -> int:
