@@ -263,6 +263,23 @@ def test_settling_matches_single_long_trajectories():
         assert cycle_distance(tail[None], runs.cycle[0, :n], scales)[0] < MATCH_TOL
 
 
+def test_rounds_of_many_runs_equal_each_run_alone():
+    # Runs leave the batch in different rounds and the kept runs' histories are compacted each round:
+    # every outcome must be what the run gives integrated alone (bitwise: a run's records do not depend
+    # on its neighbours in a batch).
+    p = ModelParams().replace(alpha=40.0, fe=2.5)
+    rng = np.random.default_rng(11)
+    states = np.column_stack([np.zeros(48), np.zeros(48), rng.uniform(-np.pi, np.pi, 48), rng.uniform(-8, 8, 48)])
+    together = settle_runs(EmulatedMap((p,)), states, 400)
+    assert len(np.unique(together.periods_done)) >= 4  # they really left in different rounds
+    for i in range(len(states)):
+        alone = settle_runs(EmulatedMap((p,)), states[i : i + 1], 400)
+        for field in ("status", "settled", "period", "turns", "settle_periods", "escape_periods", "periods_done"):
+            assert getattr(alone, field)[0] == getattr(together, field)[i], (field, i)
+        np.testing.assert_array_equal(alone.cycle[0], together.cycle[i])
+        np.testing.assert_array_equal(alone.theta_absmax[0], together.theta_absmax[i])
+
+
 def test_pendulum_at_40N_phases_and_senses_of_rotation():
     config = BasinConfig("alpha", (40.0,), {"fe": 2.5}, samples=240, seed=2, max_periods=1000)
     summary, rows = scan_summary(config, run_basins(config))

@@ -14,7 +14,7 @@ from ..attractors import MATCH_TOL, ROTATION_WINDOW, SETTLE_WINDOW, section_scal
 from ..classify import MAX_PERIOD
 from ..kernels import N_RECORD_COLUMNS, STATUS_DIVERGED, STATUS_OK, STATUS_UNSTABLE
 from ..kernels._layout import REC_THETA_ABSMAX, REC_THETADOT_SEC, REC_Y_SEC
-from ..kernels._settle import update_near_since
+from ..kernels._settle import carry_history, update_near_since
 from ..params import ModelParams
 from ..status import Status
 
@@ -305,7 +305,7 @@ def settle_runs(
         held = min(history_rows, buffer.shape[1])  # the next round's history: the last rows of this buffer
         current = 1 - current
         following = buffer_in(current, keep.size, held + min(round_periods, max(max_periods - done, 0)))
-        np.take(buffer[:, buffer.shape[1] - held :], keep, axis=0, out=following[:, :held], mode="clip")
+        carry_history(buffer, keep, held, following)
         buffer = following
         if on_round is not None:
             on_round(int(f.size))

@@ -152,3 +152,15 @@ def update_near_since(records, scales, new_periods, first_row, tol, near_since, 
                 if not _repeats(rec, j, n, inverse_scales, tol):
                     near_since[rows[i], n - 1] = first_row + j + 1
                     break
+
+
+@nb.njit(cache=True, nogil=True)
+def carry_history(buffer, keep, held, following):
+    """``following[i, :held] = buffer[keep[i], -held:]``: the next round's history of the runs kept.
+
+    Row by row, without the temporary a fancy index makes (numpy's ``take``
+    into a strided ``out`` copied element by element: 8 s a round for 1e5 runs).
+    """
+    start = buffer.shape[1] - held
+    for i in range(keep.size):
+        following[i, :held, :] = buffer[keep[i], start:, :]
