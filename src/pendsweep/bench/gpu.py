@@ -78,19 +78,25 @@ def throughput(n_side: int, periods: int, precision: str) -> dict:
 
 
 def cpu_throughput(n_side: int, periods: int) -> dict:
-    """The CPU batched kernel (all numba threads) on the same kind of points."""
+    """The CPU batched kernel (all numba threads) on the same kind of points, end to end and per period."""
     import numba
+
+    from ..backends._batch import parameter_columns
 
     params = peer_points(n_side, n_side)
     states = np.tile([0.0, 0.0, 0.1, 0.0], (len(params), 1))
     run_batch(params[:32], states[:32], 0, 1)
     wall = best_of(lambda: run_batch(params, states, 0, periods), 1)
+    columns = parameter_columns(params, 1e-3)
+    short, long = (best_of(lambda t=t: run_batch(columns, states, t, 1), 1) for t in (0, periods))
+    point_steps = len(params) * periods * STEPS
     return {
         "points": len(params),
         "periods": periods,
         "threads": numba.get_num_threads(),
         "seconds": wall,
-        "point_steps_per_s": len(params) * periods * STEPS / wall,
+        "point_steps_per_s": point_steps / wall,
+        "kernel_point_steps_per_s": point_steps / (long - short),
     }
 
 
@@ -238,13 +244,16 @@ def bench_gpu(quick: bool) -> dict:
     _part(result, "float32_1M_points", lambda: throughput(big_side, 2 if quick else 5, "float32"))
     _part(result, "cpu_batched_same_points_all_threads", lambda: cpu_throughput(n_side, 2))
     _part(result, "jax_same_gpu", lambda: jax_gpu(n_side, 2))
-    for name, a, b in (
-        ("speedup_float64_vs_cpu_batched", "float64", "cpu_batched_same_points_all_threads"),
-        ("speedup_float64_1M_vs_cpu_batched", "float64_1M_points", "cpu_batched_same_points_all_threads"),
-        ("speedup_float64_vs_jax_same_gpu", "float64", "jax_same_gpu"),
-        ("float32_over_float64", "float32", "float64"),
+    cpu, e2e, kernel = "cpu_batched_same_points_all_threads", "point_steps_per_s", "kernel_point_steps_per_s"
+    for name, a, b, key in (
+        ("speedup_float64_vs_cpu_batched", "float64", cpu, e2e),
+        ("kernel_speedup_float64_vs_cpu_batched", "float64", cpu, kernel),
+        ("speedup_float64_1M_vs_cpu_batched", "float64_1M_points", cpu, e2e),
+        ("speedup_float64_vs_jax_same_gpu", "float64", "jax_same_gpu", e2e),
+        ("float32_over_float64", "float32", "float64", e2e),
+        ("kernel_float32_over_float64", "float32", "float64", kernel),
     ):
-        result[name] = _ratio(result, a, b)
+        result[name] = _ratio(result, a, b, key)
     side, cap = (100, 300) if quick else (1000, 1000)
     _part(result, "basin_map_gpu", lambda: basin_map(side, cap, "cuda"))
     _part(result, "basin_map_gpu_float32", lambda: basin_map(side, cap, "cuda", "float32"))
