@@ -302,17 +302,23 @@ def closed_curve(sections: np.ndarray, scales: np.ndarray) -> bool:
 
 
 def decided_by_record(
-    records: np.ndarray, scales: np.ndarray, status: Status = Status.OK, rest_threshold: float = ENCODER_RESOLUTION
+    records: np.ndarray,
+    scales: np.ndarray,
+    status: Status = Status.OK,
+    rest_threshold: float = ENCODER_RESOLUTION,
+    period: int | None = None,
 ) -> Motion | None:
     """The label when the record alone decides it, else None (the point needs :class:`Evidence`).
 
-    ``rest_threshold`` [rad] is the run's "at rest" limit (:func:`at_rest`).
+    ``rest_threshold`` [rad] is the run's "at rest" limit (:func:`at_rest`);
+    ``period`` is the record's :func:`section_period` when already computed
+    (:func:`classify_runs` computes many at once).
     """
     if status is not Status.OK or not np.isfinite(records).all():
         return Motion("n/a")
     if at_rest(records[:, REC_THETA_ABSMAX], rest_threshold):
         return Motion("semi-trivial")
-    n = section_period(records[:, _SEC], scales)
+    n = section_period(records[:, _SEC], scales) if period is None else period
     if n:
         return Motion("rotating" if np.any(records[:, REC_ROTATIONS] != 0) else f"periodic-{n}", n)
     if at_rest(records[-1, REC_THETA_ABSMAX], rest_threshold):
@@ -466,6 +472,21 @@ def staged_extension(
     return sections, repeated, periods
 
 
+def _section_periods_of(runs: Sequence[PointRun], scales: list[np.ndarray]) -> dict[int, int]:
+    """:func:`section_period` of every finite record, by index, computed together per record length."""
+    by_length: dict[int, list[int]] = {}
+    for j, r in enumerate(runs):
+        if r.status is Status.OK and np.isfinite(r.records).all():
+            by_length.setdefault(r.records.shape[0], []).append(j)
+    periods: dict[int, int] = {}
+    for group in by_length.values():
+        found = section_periods(
+            np.stack([runs[j].records[:, _SEC] for j in group]), np.stack([scales[j] for j in group])
+        )
+        periods.update(zip(group, found.tolist()))
+    return periods
+
+
 def classify_runs(
     backend,
     params: Sequence[ModelParams],
@@ -500,7 +521,11 @@ def classify_runs(
     if evidence not in EVIDENCE_MODES:
         raise ValueError(f"evidence = {evidence!r}; choose one of {', '.join(EVIDENCE_MODES)}")
     scales = [section_scales(r.records, q) if r.status is Status.OK else np.ones(4) for q, r in zip(params, runs)]
-    motions = [decided_by_record(r.records, s, r.status, rest_threshold) for r, s in zip(runs, scales)]
+    periods = _section_periods_of(runs, scales)
+    motions = [
+        decided_by_record(r.records, s, r.status, rest_threshold, periods.get(j))
+        for j, (r, s) in enumerate(zip(runs, scales))
+    ]
     undecided = [j for j, m in enumerate(motions) if m is None]
     if not undecided:
         return motions

@@ -37,9 +37,16 @@ def column(values: np.ndarray | pa.Array) -> pa.Array:
 
 def repeated(text: str, n: int) -> pa.Array:
     """``n`` copies of ``text`` as an Arrow string array."""
-    data = text.encode()
-    offsets = np.arange(n + 1, dtype=np.int32) * len(data)
-    return pa.Array.from_buffers(pa.string(), n, [None, pa.py_buffer(offsets), pa.py_buffer(data * n)])
+    return repeated_each([text], [n])
+
+
+def repeated_each(texts: list[str], counts: list[int]) -> pa.Array:
+    """``texts[i]`` repeated ``counts[i]`` times, one text after another, as an Arrow string array."""
+    encoded = [text.encode() for text in texts]
+    lengths = np.repeat(np.array([len(e) for e in encoded], dtype=np.int64), counts)
+    offsets = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int32)
+    data = b"".join(e * c for e, c in zip(encoded, counts))
+    return pa.Array.from_buffers(pa.string(), len(lengths), [None, pa.py_buffer(offsets), pa.py_buffer(data)])
 
 
 def table(columns: dict[str, np.ndarray | pa.Array]) -> pa.Table:

@@ -201,7 +201,11 @@ class ModelParams:
                 direct["C"] = v + changes.get("C2", self.C2)
             else:
                 direct[name] = v
-        return dataclasses.replace(self, **direct)
+        # Every field of self is valid and every change was just checked: copy without __post_init__'s
+        # check of all 14 fields again (a dense sweep makes thousands of parameter sets).
+        copy = object.__new__(type(self))
+        copy.__dict__.update(self.__dict__, **direct)
+        return copy
 
     @classmethod
     def from_mapping(cls, mapping: Mapping[str, Any]) -> ModelParams:
