@@ -227,7 +227,8 @@ def run_map(
 ) -> pd.DataFrame | None:
     """Run (or resume) a two-parameter map; one row per grid cell.
 
-    Cells go in units of ``chunk_cells``, each on the batched kernel with
+    Cells go in units of ``chunk_cells`` (at least
+    :data:`pendsweep.gpu.GPU_BATCH_POINTS` on a GPU), each on the batched kernel with
     all cores, run by the scan engine (:func:`pendsweep.scan.run_scan`):
     finished units are persisted (at most ``checkpoint_seconds`` s after
     they finish) and skipped on a rerun. ``max_work``

@@ -314,7 +314,8 @@ def run_basins(
 ) -> pd.DataFrame | None:
     """Run (or resume) a basin computation; return one row per (point, start).
 
-    Starts go in units of ``chunk_starts`` (one parameter point each), run
+    Starts go in units of ``chunk_starts`` (one parameter point each; at
+    least :data:`pendsweep.gpu.GPU_BATCH_POINTS` on a GPU), run
     by the scan engine (:func:`pendsweep.scan.run_scan`): a finished unit is
     persisted through :class:`~pendsweep.results.ResultStore` at most
     ``checkpoint_seconds`` s after it finishes, so a rerun of the same configuration skips it. On the emulated backend a
