@@ -33,6 +33,7 @@ from pendsweep.basins import (
 )
 from pendsweep.classify import section_difference, section_period
 from pendsweep.cli import main
+from pendsweep.errors import ConfigError
 from pendsweep.kernels import N_RECORD_COLUMNS
 from pendsweep.params import ModelParams
 
@@ -336,6 +337,11 @@ def test_resume_after_interruption_gives_the_same_file(tmp_path):
     resumed = run_basins(config, tmp_path / "b.parquet", chunk_starts=16)
     cols = [c for c in whole.columns if c not in ("cycle", "scales")]
     assert whole[cols].equals(resumed[cols])
+    # Parts cut into other units (another version, or a GPU's bigger units) are refused, not half reused.
+    with pytest.raises(Interrupted):
+        run_basins(config, tmp_path / "c.parquet", chunk_starts=16, executor=StopAfterTwo())
+    with pytest.raises(ConfigError, match="units of another size"):
+        run_basins(config, tmp_path / "c.parquet", chunk_starts=32)
 
 
 def test_cli_basins_json_and_bad_input(tmp_path):

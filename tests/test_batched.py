@@ -422,3 +422,21 @@ def test_run_lanes_refuses_a_schedule_longer_than_its_arrays():
         run_lanes(params, states, lanes, 5, 4)
     run, stretch = run_lanes(params, states, lanes, 5, 5)
     assert run.records.shape == (2, 5, 8) and stretch.shape == (2, 5)
+
+
+def test_parameter_columns_are_the_parameter_sets_and_know_their_step():
+    """Columns built once give what the sets give; zero points give empty runs; another dt is refused."""
+    from pendsweep.backends._batch import parameter_columns
+
+    shared = TABLE_IV.replace(alpha=20.0, fe=2.2)
+    params = [shared, TABLE_IV.replace(alpha=30.0), shared, TABLE_IV.replace(alpha=20.0, fe=2.2)]
+    states = np.tile([0.0, 0.0, 0.3, 0.0], (len(params), 1))
+    by_sets = run_batch(params, states, 2, 3)
+    by_columns = run_batch(parameter_columns(params, 1e-3), states, 2, 3)
+    for a, b in zip(by_sets, by_columns):
+        np.testing.assert_array_equal(a, b)
+    assert parameter_columns(params, 1e-3).steps.tolist() == [455, 400, 455, 455]
+    empty = run_batch([], np.empty((0, 4)), 2, 3)
+    assert [a.shape for a in empty] == [(0, 3, 8), (0, 4), (0,), (0,)]
+    with pytest.raises(ConfigError, match="dt"):
+        run_batch(parameter_columns(params, 2e-3), states, 2, 3)

@@ -31,6 +31,13 @@ TOLERANCES: dict[str, tuple[float, str]] = {
         "pieces (measured: 1.3e-14 of the largest channel)",
     ),
 }
+#: The substructured loop's least-squares predictor and force filter go through LAPACK/BLAS, whose
+#: results differ in the last bits with the OpenBLAS kernel chosen for the CPU. The reference was written
+#: with OpenBLAS's SkylakeX kernels (bitwise equal with OPENBLAS_CORETYPE=SkylakeX); with its Haswell or
+#: Zen kernels (an AMD EPYC VM, 26 Nov 2026) the loop amplifies those bits to 2.7e-13 (delay and filter),
+#: 8.3e-14 (trace) and 3e-18 (servo) of each case's largest value.
+_BLAS = "last bits of the predictor's and filter's LAPACK/BLAS results, which depend on the CPU's OpenBLAS kernels"
+TOLERANCES.update({case: (1e-12, _BLAS) for case in ("sub_delay_filter", "sub_servo", "sub_trace")})
 #: How each case's flat array splits into channels for the relative comparison.
 CHANNELS = {
     "substructured_replay": [slice(c, 499 * 4, 4) for c in range(4)] + [slice(1996, 2496), slice(2496, 2996)],

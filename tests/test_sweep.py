@@ -42,6 +42,18 @@ def test_config_rejects_bad_values():
         SweepConfig("fe", (float("nan"),))
     with pytest.raises(ConfigError, match="mode"):
         SweepConfig("alpha", (1.0,), mode="sideways")
+    # A copy checks what changes, the masses and dampings derived from M1/C1 included.
+    from pendsweep.params import TABLE_IV
+
+    with pytest.raises(ParameterError, match="M = inf kg"):
+        TABLE_IV.replace(M1=1.7e308, M2=1.7e308)
+    with pytest.raises(ParameterError, match="C = inf kg/s"):
+        TABLE_IV.replace(C1=1.7e308, C2=1.7e308)
+    with pytest.raises(ParameterError, match="K = -3.0"):
+        TABLE_IV.replace(K=-3.0)
+    moved = TABLE_IV.replace(M1=5.0, alpha=12)
+    assert (moved.M, moved.alpha, moved.M2, type(moved.alpha)) == (5.0 + TABLE_IV.M2, 12.0, TABLE_IV.M2, float)
+    assert moved == dataclasses.replace(TABLE_IV, M=5.0 + TABLE_IV.M2, alpha=12.0)
 
 
 def test_long_form_schema_and_row_count():

@@ -206,7 +206,11 @@ class MapScan:
         )
 
     def tasks(self, finished, n_jobs: int):
-        todo = [c for c in self._chunks() if f"cells:{int(c[0])}" not in finished.keys]
+        from .scan import check_unit_keys
+
+        chunks = self._chunks()
+        check_unit_keys(finished, {f"cells:{int(c[0])}" for c in chunks})
+        todo = [c for c in chunks if f"cells:{int(c[0])}" not in finished.keys]
         return [functools.partial(_map_task, self.config, c) for c in todo], 1
 
     def order(self, df: pd.DataFrame) -> pd.DataFrame:

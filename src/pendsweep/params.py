@@ -196,9 +196,9 @@ class ModelParams:
         for name, value in changes.items():
             v = check_value(name, value)
             if name == "M1":
-                direct["M"] = v + changes.get("M2", self.M2)
+                direct["M"] = check_value("M", v + check_value("M2", changes.get("M2", self.M2)))
             elif name == "C1":
-                direct["C"] = v + changes.get("C2", self.C2)
+                direct["C"] = check_value("C", v + check_value("C2", changes.get("C2", self.C2)))
             else:
                 direct[name] = v
         # Every field of self is valid and every change was just checked: copy without __post_init__'s

@@ -72,6 +72,21 @@ class Finished:
 
 Task = Callable[[], Iterable[UnitResult]]
 
+
+def check_unit_keys(finished: Finished, keys: set[str]) -> None:
+    """Refuse to resume from units this scan would not make (units of another size: another version or device).
+
+    Their starts would otherwise be taken as done while only part of them
+    are, and the file would come out short without a word.
+    """
+    foreign = sorted(finished.keys - keys)
+    if foreign:
+        raise ConfigError(
+            f"the parts on disk hold {len(foreign)} unit(s) this run would cut otherwise (e.g. {foreign[0]!r}: "
+            "units of another size, from another pendsweep version or device); rerun with --overwrite"
+        )
+
+
 #: Memory per result row of a per-start scan (basins, map) when gathered [bytes]: about 25 columns
 #: of 8 bytes in Arrow, and as much again while the final table and its summary are built.
 RESULT_ROW_BYTES = 512

@@ -23,7 +23,7 @@ from ..gpu import check_device, run_batch_cuda
 from ..kernels import N_RECORD_COLUMNS, STATUS_OK
 from ..kernels._batched import LANE_GROUP, Lanes, batched_periods
 from ..kernels._layout import SECTION_COLUMNS
-from ..params import ModelParams
+from ..params import KERNEL_FIELDS, ModelParams
 from ._base import steps_per_period
 
 #: Points integrated in lockstep by one thread (a chunk's working set stays in L1/L2).
@@ -93,36 +93,44 @@ class ParameterColumns(NamedTuple):
         Forcing amplitude [N] and frequency [Hz].
     steps : int64[n]
         RK4 steps per forcing period at the requested step.
+    dt : float
+        The requested step [s] they were built for.
     """
 
     kernel_params: np.ndarray
     alpha: np.ndarray
     fe: np.ndarray
     steps: np.ndarray
+    dt: float
 
     def take(self, index: np.ndarray) -> ParameterColumns:
         """The columns of the points ``index`` (repeats allowed)."""
-        return ParameterColumns(*(column[index] for column in self))
+        return ParameterColumns(
+            self.kernel_params[index], self.alpha[index], self.fe[index], self.steps[index], self.dt
+        )
 
 
 def parameter_columns(params: Sequence[ModelParams] | ParameterColumns, dt: float) -> ParameterColumns:
     """Per-point kernel inputs at the requested step ``dt`` [s], built once per distinct parameter set.
 
     Basins pass one set hundreds of thousands of times a round, so sets are
-    told apart by identity. Columns already built (at the same ``dt``) are
-    returned as they are.
+    told apart by identity. Columns already built are returned as they are;
+    built for another ``dt``, they raise :class:`ConfigError`.
     """
     if isinstance(params, ParameterColumns):
+        if params.dt != dt:
+            raise ConfigError(f"parameter columns built for dt = {params.dt!r} s, used with dt = {dt!r} s")
         return params
     slot: dict[int, int] = {}  # id of a parameter set -> its row in the table, in order of first appearance
     index = np.fromiter((slot.setdefault(id(q), len(slot)) for q in params), dtype=np.int64, count=len(params))
     _, first = np.unique(index, return_index=True)
     ordered = [params[i] for i in first]
     return ParameterColumns(
-        np.array([q.kernel_array() for q in ordered]).reshape(len(ordered), -1),
+        np.array([q.kernel_array() for q in ordered]).reshape(len(ordered), len(KERNEL_FIELDS)),
         np.array([q.alpha for q in ordered], dtype=np.float64),
         np.array([q.fe for q in ordered], dtype=np.float64),
         np.array([steps_per_period(q.fe, dt) for q in ordered], dtype=np.int64),
+        float(dt),
     ).take(index)
 
 
@@ -186,7 +194,7 @@ def run_batch(
     check_device(device, precision)
     if device == "cuda" and n:
         return BatchRun(*run_batch_cuda(
-            *columns, np.asarray(states, dtype=np.float64).reshape(n, 4),
+            columns.kernel_params, columns.alpha, columns.fe, columns.steps, np.asarray(states, dtype=np.float64).reshape(n, 4),
             int(transient_periods), int(record_periods), sgn_per_stage=signum == "stage", precision=precision,
         ))  # fmt: skip
     lanes = Lanes(
@@ -223,7 +231,7 @@ def run_lanes(
     Raises ``ValueError`` when a lane would record more than
     ``record_periods`` periods or a twin run longer than ``stretch_periods``.
     """
-    kernel_params, alpha, fe, steps = parameter_columns(params, dt)
+    kernel_params, alpha, fe, steps, _ = parameter_columns(params, dt)
     n = len(steps)
     total = np.asarray(lanes.total, dtype=np.int64)
     partner = np.asarray(lanes.partner, dtype=np.int64)

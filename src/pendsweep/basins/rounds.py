@@ -255,7 +255,7 @@ def settle_runs(
     # The buffer of a round (history, then the new records) lives in one of two stores, and the next round's
     # history is gathered into the other: a chunk of 1e5 starts (a GPU's) holds about 1 GB of buffer, and
     # allocating it anew every round cost more than the GPU's integration.
-    capacity = k * (history_rows + round_periods) * N_RECORD_COLUMNS
+    capacity = k * min(history_rows + round_periods, max_periods) * N_RECORD_COLUMNS  # a buffer's rows at most
     stores = (np.empty(capacity), np.empty(capacity))
     current = 0  # the store holding this round's buffer
 

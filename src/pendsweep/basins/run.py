@@ -290,8 +290,12 @@ class BasinScan:
         return Work(starts, self.config.max_periods, float(steps), result_bytes=starts * RESULT_ROW_BYTES)
 
     def tasks(self, finished, n_jobs: int):
+        from ..scan import check_unit_keys
+
         workers = (os.cpu_count() or 1) if n_jobs < 1 else n_jobs
-        todo = [(p, st) for p, st in self._chunks() if unit_key(p, int(st[0])) not in finished.keys]
+        chunks = self._chunks()
+        check_unit_keys(finished, {unit_key(p, int(st[0])) for p, st in chunks})
+        todo = [(p, st) for p, st in chunks if unit_key(p, int(st[0])) not in finished.keys]
         # The emulated backend's batched kernel uses every core within a task: tasks run one at a time locally.
         return [functools.partial(_basin_task, self.config, p, st, workers) for p, st in todo], 1
 
