@@ -38,17 +38,17 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pyarrow as pa
 
-from .backends import BACKENDS, PointRun, make_backend
+from .backends import BACKENDS, make_backend
 from .classify import EVIDENCE_MODES, at_rest, classify_runs
-from .columns import repeated_each, table, to_numpy
+from .columns import to_numpy
 from .errors import ConfigError
 from .executors import Executor
-from .kernels import RECORD_COLUMNS
-from .kernels._layout import REC_THETA_ABSMAX, RECORD_INDEX
+from .kernels._layout import REC_THETA_ABSMAX
 from .params import ENCODER_RESOLUTION, PARAM_SPECS, ModelParams, check_value
 from .results import run_metadata
 from .scan import DEFAULT_MAX_WORK, Finished, UnitResult, Work, run_scan, sample_indices
 from .status import Status
+from .sweep_rows import PointResult, unit_key, unit_results
 
 if TYPE_CHECKING:  # rows are built as pyarrow columns; frames only at the API boundary
     import pandas as pd
@@ -270,78 +270,6 @@ def multistart_initials(config: SweepConfig, point: int) -> np.ndarray:
     return out
 
 
-def unit_key(direction: str, point: int, start: int) -> str:
-    """Identifier of one unit of work in result stores and resume bookkeeping."""
-    return f"{direction}:{int(point)}:{int(start)}"
-
-
-@dataclass
-class PointResult:
-    """One finished unit of work, ready to be written."""
-
-    direction: str
-    point: int
-    start: int
-    value: float
-    run: PointRun
-    kicked: bool
-    motion: str = ""
-    settled: bool = False
-    transient_used: int = 0
-
-    @property
-    def key(self) -> str:
-        return unit_key(self.direction, self.point, self.start)
-
-
-def result_rows(config: SweepConfig, results: list[PointResult]) -> pa.Table:
-    """Long-form rows of units, one row per recorded period, the units one after another.
-
-    Built from whole columns for all the units at once: a dense sweep's
-    task holds hundreds of units, and a table each cost more than their
-    classification (:func:`unit_results` slices this one instead).
-    """
-    counts = [r.run.records.shape[0] for r in results]
-    total = sum(counts)
-    records = np.concatenate([r.run.records for r in results]) if results else np.empty((0, len(RECORD_COLUMNS)))
-
-    def per_row(values: list, dtype) -> np.ndarray:
-        return np.repeat(np.array(values, dtype=dtype), counts)
-
-    first_rows = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64) if results else np.zeros(0, np.int64)
-    columns: dict[str, Any] = {
-        config.parameter: per_row([r.value for r in results], np.float64),
-        "direction": repeated_each([r.direction for r in results], counts),
-        "point": per_row([r.point for r in results], np.int64),
-        "start": per_row([r.start for r in results], np.int64),
-        "period": np.arange(total, dtype=np.int64) - np.repeat(first_rows, counts),
-    }
-    for j, name in enumerate(RECORD_COLUMNS):
-        columns[name] = records[:, j]
-    columns["rotations"] = np.nan_to_num(records[:, RECORD_INDEX["rotations"]]).astype(np.int64)
-    columns["kicked"] = per_row([r.kicked for r in results], np.bool_)
-    columns["status"] = repeated_each([r.run.status.value for r in results], counts)
-    columns["motion"] = repeated_each([r.motion for r in results], counts)
-    if results and results[0].run.round_trip is not None:  # a remote rig: the protocol's timing [s]
-        for k, name in enumerate(("round_trip_p50", "round_trip_p99", "round_trip_max")):
-            columns[name] = per_row([r.run.round_trip[k] for r in results], np.float64)
-    if config.transient == "auto":
-        columns["settled"] = per_row([r.settled for r in results], np.bool_)
-        columns["transient_periods_used"] = per_row([r.transient_used for r in results], np.int64)
-    return table(columns)
-
-
-def unit_results(config: SweepConfig, results: list[PointResult]) -> list[UnitResult]:
-    """The finished units, ready to be written: their rows sliced from one table, and final states."""
-    rows = result_rows(config, results)
-    units, offset = [], 0
-    for r in results:
-        n = r.run.records.shape[0]
-        units.append(UnitResult(r.key, rows.slice(offset, n), r.run.state.tolist()))
-        offset += n
-    return units
-
-
 def run_units(config: SweepConfig, backend, params: list, states: np.ndarray, threads=None, one_by_one=False):
     """Transient and record of units: ``(runs, settled, transient periods used)``.
 
@@ -383,7 +311,8 @@ def _classified(config, backend, pending: list[tuple[PointResult, ModelParams]])
     motions = classify_runs(
         backend, [q for _, q in pending], [r.run for r, _ in pending], config.rest_threshold, config.evidence
     )
-    yield from unit_results(config, [dataclasses.replace(r, motion=m.label) for (r, _), m in zip(pending, motions)])
+    labelled = [dataclasses.replace(r, motion=m.label) for (r, _), m in zip(pending, motions)]
+    yield from unit_results(labelled, config.parameter, config.transient == "auto")
 
 
 #: Continue-mode points labelled together: the evidence of a moving point
@@ -437,11 +366,12 @@ def _independent_units(config, backend, units, threads) -> list[UnitResult]:
     runs, settled, used = run_units(config, backend, params, np.array(states), threads)
     motions = classify_runs(backend, params, runs, config.rest_threshold, config.evidence)
     return unit_results(
-        config,
         [
             PointResult("none", i, s, config.values[i], run, False, motion.label, bool(ok), int(n))
             for (i, s), run, motion, ok, n in zip(units, runs, motions, settled, used)
         ],
+        config.parameter,
+        config.transient == "auto",
     )
 
 
