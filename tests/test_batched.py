@@ -435,6 +435,10 @@ def test_parameter_columns_are_the_parameter_sets_and_know_their_step():
     by_columns = run_batch(parameter_columns(params, 1e-3), states, 2, 3)
     for a, b in zip(by_sets, by_columns):
         np.testing.assert_array_equal(a, b)
+    # Against each point integrated alone (no sharing of a column row to get wrong): the same records.
+    for i, q in enumerate(params):
+        alone = run_batch([q], states[i : i + 1], 2, 3)
+        np.testing.assert_array_equal(alone.records[0], by_columns.records[i])
     assert parameter_columns(params, 1e-3).steps.tolist() == [455, 400, 455, 455]
     empty = run_batch([], np.empty((0, 4)), 2, 3)
     assert [a.shape for a in empty] == [(0, 3, 8), (0, 4), (0,), (0,)]

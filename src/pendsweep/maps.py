@@ -22,9 +22,10 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from .backends import EmulatedBackend
 from .basins import CHUNK_STARTS, ROUND_PERIODS, EmulatedMap, settle_runs
 from .errors import ConfigError
-from .gpu import GPU_BATCH_POINTS, check_device
+from .gpu import check_device
 from .params import PARAM_SPECS, ModelParams, check_value
 from .status import Status
 
@@ -183,8 +184,8 @@ class MapScan:
 
     def _chunks(self) -> list[np.ndarray]:
         n = self.config.cells
-        # A GPU needs ~1e5 threads to be busy: its units hold at least GPU_BATCH_POINTS cells.
-        size = max(self.chunk_cells, GPU_BATCH_POINTS if self.config.device == "cuda" else 1)
+        # A GPU needs ~1e5 threads to be busy: its units hold at least the backend's minimum batch.
+        size = max(self.chunk_cells, EmulatedBackend(device=self.config.device).min_batch_points)
         return [np.arange(first, min(first + size, n)) for first in range(0, n, size)]
 
     def n_units(self) -> int:

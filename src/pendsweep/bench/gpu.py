@@ -45,58 +45,36 @@ TARGETS = {"float64_point_steps_per_s_min": 2e10, "speedup_vs_jax_same_gpu_min":
 STEPS = 400  # fe = 2.5 Hz at dt = 1 ms
 
 
-def throughput(n_side: int, periods: int, precision: str) -> dict:
-    """Point-steps per second of the GPU kernel on ``n_side**2`` points over ``periods`` periods.
+def throughput(n_side: int, periods: int, device: str = "cuda", precision: str = "float64", repeat: int = 3) -> dict:
+    """Point-steps per second of the batched kernel on ``n_side**2`` points over ``periods`` periods.
 
     ``point_steps_per_s`` is the whole ``run_batch`` call (the parameter
     columns built, the transfers, the launch); ``kernel_point_steps_per_s``
-    is the marginal cost of a period, from the same launch run with and
-    without ``periods`` extra transient periods (what the transfers and the
-    host's work cost cancels out).
+    is the marginal cost of a period, from the same call with the columns
+    built beforehand, run with and without ``periods`` extra transient
+    periods (what the transfers and the host's work cost cancels out).
     """
-    from ..backends._batch import parameter_columns
-    from ..gpu import run_batch_cuda
-
-    params = peer_points(n_side, n_side)
-    states = np.tile([0.0, 0.0, 0.1, 0.0], (len(params), 1))
-    run_batch(params[:32], states[:32], 0, 1, device="cuda", precision=precision)  # compile
-    wall = best_of(lambda: run_batch(params, states, 0, periods, device="cuda", precision=precision), 3)
-    columns = parameter_columns(params, 1e-3)
-    short, long = (
-        best_of(lambda t=t: run_batch_cuda(*columns[:4], states, t, 1, precision=precision), 3) for t in (0, periods)
-    )
-    point_steps = len(params) * periods * STEPS
-    return {
-        "points": len(params),
-        "periods": periods,
-        "seconds": wall,
-        "point_steps_per_s": point_steps / wall,
-        "ps_per_point_step": 1e12 * wall / point_steps,
-        "kernel_point_steps_per_s": point_steps / (long - short),
-        "kernel_ps_per_point_step": 1e12 * (long - short) / point_steps,
-    }
-
-
-def cpu_throughput(n_side: int, periods: int) -> dict:
-    """The CPU batched kernel (all numba threads) on the same kind of points, end to end and per period."""
     import numba
 
     from ..backends._batch import parameter_columns
 
     params = peer_points(n_side, n_side)
     states = np.tile([0.0, 0.0, 0.1, 0.0], (len(params), 1))
-    run_batch(params[:32], states[:32], 0, 1)
-    wall = best_of(lambda: run_batch(params, states, 0, periods), 1)
+    options = {"device": device, "precision": precision}
+    run_batch(params[:32], states[:32], 0, 1, **options)  # compile
+    wall = best_of(lambda: run_batch(params, states, 0, periods, **options), repeat)
     columns = parameter_columns(params, 1e-3)
-    short, long = (best_of(lambda t=t: run_batch(columns, states, t, 1), 1) for t in (0, periods))
+    short, long = (best_of(lambda t=t: run_batch(columns, states, t, 1, **options), repeat) for t in (0, periods))
     point_steps = len(params) * periods * STEPS
     return {
         "points": len(params),
         "periods": periods,
-        "threads": numba.get_num_threads(),
+        **({"threads": numba.get_num_threads()} if device == "cpu" else {}),
         "seconds": wall,
         "point_steps_per_s": point_steps / wall,
+        "ps_per_point_step": 1e12 * wall / point_steps,
         "kernel_point_steps_per_s": point_steps / (long - short),
+        "kernel_ps_per_point_step": 1e12 * (long - short) / point_steps,
     }
 
 
@@ -238,11 +216,11 @@ def bench_gpu(quick: bool) -> dict:
     big_side = 200 if quick else 1024  # 4e4 / 1.05e6 points
     periods = 5 if quick else 20
     result: dict = {"device": device_name(), "versions": _versions(), "targets": TARGETS}
-    _part(result, "float64", lambda: throughput(n_side, periods, "float64"))
-    _part(result, "float32", lambda: throughput(n_side, periods, "float32"))
-    _part(result, "float64_1M_points", lambda: throughput(big_side, 2 if quick else 5, "float64"))
-    _part(result, "float32_1M_points", lambda: throughput(big_side, 2 if quick else 5, "float32"))
-    _part(result, "cpu_batched_same_points_all_threads", lambda: cpu_throughput(n_side, 2))
+    _part(result, "float64", lambda: throughput(n_side, periods))
+    _part(result, "float32", lambda: throughput(n_side, periods, precision="float32"))
+    _part(result, "float64_1M_points", lambda: throughput(big_side, 2 if quick else 5))
+    _part(result, "float32_1M_points", lambda: throughput(big_side, 2 if quick else 5, precision="float32"))
+    _part(result, "cpu_batched_same_points_all_threads", lambda: throughput(n_side, 2, device="cpu", repeat=1))
     _part(result, "jax_same_gpu", lambda: jax_gpu(n_side, 2))
     cpu, e2e, kernel = "cpu_batched_same_points_all_threads", "point_steps_per_s", "kernel_point_steps_per_s"
     for name, a, b, key in (
