@@ -9,11 +9,15 @@ import pytest
 from pendsweep.backends import make_backend
 from pendsweep.classify import (
     EXTEND_PERIODS,
+    NOISE_MAX,
+    PERIODIC_TOL,
     Evidence,
     classify_records,
     classify_run,
     closed_curve,
     lyapunov_estimate,
+    section_period,
+    section_scales,
     two_trajectory_log_stretch,
 )
 from pendsweep.kernels._layout import RECORD_INDEX as REC
@@ -192,6 +196,7 @@ def test_batched_evidence_gives_the_labels_of_point_by_point_evidence():
     class PointByPoint:  # the same backend without its batched evidence
         batched = False  # the contract's declaration: no batched kernel, no evidence_many
         restartable = True  # it can start from any state (the contract)
+        noisy = False  # its records are noise-free (the contract)
 
         def run_point(self, *args):
             return backend.run_point(*args)
@@ -276,3 +281,92 @@ def test_evidence_mode_is_checked():
         classify_runs(make_backend("emulated"), [], [], evidence="some")
     with pytest.raises(ConfigError, match="evidence"):
         SweepConfig(parameter="alpha", values=(1.0,), evidence="some")
+
+
+# -- noisy records: tolerances from the record's own measured noise -------------------------------------------
+ENCODER_STEP = 0.0013  # rad, Table III
+
+
+def noisy_records(states, jitter, seed, envelope=None):
+    """Records of ``states`` (k, 4) with Gaussian section jitter [~rad] and an encoder-quantised theta."""
+    rng = np.random.default_rng(seed)
+    states = np.asarray(states, dtype=float) + rng.normal(0.0, jitter, size=np.shape(states))
+    states[:, 2] = np.round(states[:, 2] / ENCODER_STEP) * ENCODER_STEP
+    rec = records_from(states)
+    if envelope is not None:
+        rec[:, REC["theta_absmax"]] = envelope
+    rec[:, REC["theta_absmax"]] = np.round(rec[:, REC["theta_absmax"]] / ENCODER_STEP) * ENCODER_STEP
+    return rec
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 5])
+def test_noisy_periodic_n_repeats_within_its_measured_noise(n):
+    """A period-n cycle under 1e-3 of jitter and an encoder's steps: periodic-n on a noisy backend for every
+    seed, with the jitter measured to within 40 %; the noise-free rule (1e-3) cannot see the repeat."""
+    cycle = np.random.default_rng(n).uniform(-0.5, 0.5, size=(n, 4))
+    for seed in range(10):
+        rec = noisy_records(cycle[np.arange(RECORD) % n], 1e-3, seed)
+        motion = classify_records(rec, UNIT, Status.OK, never, noisy=True)
+        assert motion.label == f"periodic-{n}", (seed, motion)
+        assert 0.6e-3 < motion.noise.jitter[0] < 1.4e-3  # y: a continuous channel, true jitter 1e-3
+        assert motion.noise.applied_tolerance > PERIODIC_TOL
+        assert section_period(rec[:, SECTION_COLUMNS], UNIT) == 0
+        assert classify_records(rec, UNIT, Status.OK, None).label == "transient"  # the noise-free rule
+
+
+def test_noisy_records_that_do_not_repeat_are_left_to_the_evidence():
+    """Motions that are not periodic (a small torus, a converging spiral, chaos, a decaying swing that the
+    section hides) and a jitter larger than noise are not read as periodic; a period-4 orbit whose halves
+    differ by 20 jitters stays period 4."""
+    rng = np.random.default_rng(7)
+    k = np.arange(RECORD)[:, None]
+    golden = 2 * math.pi * (math.sqrt(5) - 1) / 2
+    torus = np.hstack([np.full((RECORD, 2), 0.3), 0.3 + 0.05 * np.cos(golden * k), 0.05 * np.sin(golden * k)])
+    spiral = np.hstack([np.full((RECORD, 2), 0.3), 0.2 * 0.9**k * np.cos(0.3 * k), 0.2 * 0.9**k * np.sin(0.3 * k)])
+    henon_orbit = orbit(henon, np.array([0.0, 0.0, 0.1, 0.1]), 100 + RECORD)[100:]
+    two = rng.uniform(-0.5, 0.5, size=(2, 4))[np.arange(RECORD) % 2]
+    hidden = np.tile([0.3, 0.3, 0.2, 0.4], (RECORD, 1))  # the section stands still ...
+    decaying = 0.6 - 0.002 * np.arange(RECORD)  # ... while the swing decays
+    for name, rec in {
+        "torus": noisy_records(torus, 1e-3, 1),
+        "spiral": noisy_records(spiral, 1e-3, 2),
+        "henon": noisy_records(henon_orbit, 1e-3, 3),
+        "too loud": noisy_records(two, 3 * NOISE_MAX, 4),
+        "decaying swing": noisy_records(hidden, 1e-3, 5, envelope=decaying),
+    }.items():
+        motion = classify_records(rec, UNIT, Status.OK, None, noisy=True)
+        assert motion.label == "transient" and not motion.noise.repeats, (name, motion)
+    four = rng.uniform(-0.5, 0.5, size=(2, 4))[np.arange(RECORD) % 2]
+    four[::4] += 0.02  # halves of the period-2 pattern 0.02 apart: a period-4 orbit
+    for seed in range(5):
+        assert classify_records(noisy_records(four, 1e-3, seed), UNIT, Status.OK, never, noisy=True).label == (
+            "periodic-4"
+        )
+
+
+def test_noisy_substructured_sweep_reads_like_the_noise_free_loop():
+    """The default rig (load-cell noise, encoder, LVDT) on the period-2 branch of Fig. 11(a1): periodic-2 as the
+    same loop without noise, where the old 1e-3 rule found no repeat; rest stays rest and the irregular motion at
+    42 N is not called periodic. The rows say what was measured."""
+    exact = {name: 0.0 for name in ("force_noise", "encoder_resolution", "lvdt_resolution", "lvdt_noise")}
+    values = (5.0, 24.0, 28.0, 32.0, 36.0, 42.0)
+    frames = {}
+    for name, options in (("noisy", {}), ("exact", exact)):
+        config = SweepConfig(
+            parameter="alpha", values=values, model={"fe": 2.5}, mode="fresh", transient_periods=150,
+            backend="substructured", backend_options=options,
+        )  # fmt: skip
+        frames[name] = run_sweep(config).groupby("alpha").first()
+    noisy, exact_rows = frames["noisy"], frames["exact"]
+    assert make_backend("substructured").noisy and not make_backend("substructured", **exact).noisy
+    assert list(exact_rows["motion"].iloc[:5]) == ["semi-trivial"] + ["periodic-2"] * 4
+    assert list(noisy["motion"].iloc[:5]) == list(exact_rows["motion"].iloc[:5])
+    assert not any(rows["motion"].iloc[5].startswith("periodic") for rows in (noisy, exact_rows))  # 42 N
+    branch = noisy.loc[[24.0, 28.0, 32.0, 36.0]]
+    assert ((branch["section_noise"] > 1e-4) & (branch["section_noise"] < NOISE_MAX)).all()
+    assert (branch["periodic_tol"] > PERIODIC_TOL).all()
+    assert "section_noise" not in exact_rows.columns
+    backend = make_backend("substructured")
+    q = FIG9_PO.replace(alpha=30.0, fe=2.5)
+    run = backend.run_point(q, backend.initial_state(q, 0.0, 0.0, 0.1, 0.0), 150, 20)
+    assert section_period(run.records[:, SECTION_COLUMNS], section_scales(run.records, q)) == 0  # 1e-3 fails

@@ -8,8 +8,10 @@ Every sweep unit (direction, point, start) gets one ``motion`` label:
 ``periodic-n`` (n = 1..8)
     The stroboscopic section repeats after n forcing periods: every
     component of the normalised section differs from the one n periods
-    earlier by less than :data:`PERIODIC_TOL`. The smallest such n is given;
-    the pendulum's subharmonic swing at fe/2 is ``periodic-2``.
+    earlier by less than :data:`PERIODIC_TOL`, or, on a backend whose
+    records carry noise, by less than the tolerance the record's own
+    measured noise sets (below, "Noisy records"). The smallest such n is
+    given; the pendulum's subharmonic swing at fe/2 is ``periodic-2``.
 ``chaotic``
     The largest Lyapunov exponent is positive beyond its uncertainty:
     mean > :data:`LYAP_SIGMAS` standard errors and > :data:`LYAP_FLOOR`
@@ -50,6 +52,38 @@ standard error comes from means over blocks of :data:`LYAP_BLOCK` periods,
 which absorbs the samples' short-range correlation. Backends with more
 state than ``(y, ydot, theta, thetadot)`` restart their own states from
 rest at the section, an approximation.
+
+Noisy records (backends with ``noisy`` True: a rig's sensors, the
+substructured loop's load cell, encoder and LVDT). An encoder alone
+quantises theta to 0.0013 rad, and the load cell's noise jitters the whole
+loop, so a rig's section cannot repeat to 1e-3 even where its motion is
+periodic. :func:`measured_noise` measures each record's own noise. For
+every cycle n it takes the n-differences of the normalised section and of
+each period's largest |theta| (``theta_absmax``: a swing that grows or
+decays shows there even when the section, sampled near a zero crossing,
+hides it), and their rms per component over sqrt 2, the jitter of one
+section. A cycle's level is its largest jitter, a quantised channel
+counted at least at its step. The smallest level over the cycles is the
+record's noise floor, and the smallest cycle whose level is within
+:data:`NOISE_FLOOR_RATIO` of it is the record's cycle. The record repeats
+after that cycle within its noise when the jitter looks like noise: at
+most :data:`NOISE_MAX` (chaos in bands and tori are larger), no drift (the
+n-differences' mean within :data:`NOISE_DRIFT_SIGMAS` standard errors of
+0) and no smooth motion (each component's autocorrelation, averaged over
+lags 1..n, below :data:`NOISE_SMOOTHNESS`: independent jitter gives
+-1/(2n), a slow drift, a decaying swing or a torus's rotation near +1),
+and every n-difference is within the tolerance the jitter sets:
+:data:`NOISE_SIGMAS` jitters plus the channel's step, never below
+:data:`PERIODIC_TOL`. A record that repeats to :data:`PERIODIC_TOL` is
+periodic as on a noise-free backend; a noisy record whose last period is
+at rest is still coming to rest (``transient``) even if it repeats within
+noise. Result rows of such backends carry ``section_noise`` (the measured
+jitter, largest component) and ``periodic_tol`` (the largest tolerance a
+repeat was judged with: :data:`PERIODIC_TOL` unless the record repeats
+within its noise). The same test decides whether an extension's tail
+repeats. Limits: a period-2n orbit whose halves differ by less than the
+floor ratio reads as period n, and a torus or band chaos smaller than the
+noise reads as periodic, as the record cannot tell them apart.
 
 Staged evidence (:func:`classify_runs`' default): a record with rotations
 gets the Lyapunov pair alone (it is ``rotating`` or ``chaotic``, which
@@ -107,6 +141,25 @@ EVIDENCE_MODES = ("staged", "full")
 #: oscillator decaying to rest would otherwise be measured against its own
 #: vanishing amplitude and never repeat (1 nm is far below any displacement sensor).
 Y_FLOOR = 1e-9
+#: Noisy records: the largest section jitter accepted as noise [normalised, ~rad]: 7 times the largest
+#: of the default substructured loop's on the period-2 branch of Fig. 11(a1) (5e-4 to 1.4e-3 over 8 seeds
+#: at 20-36 N); near a bifurcation, where the orbit's weak stability amplifies noise, a record above it
+#: gets the extension and Lyapunov evidence instead ...
+NOISE_MAX = 0.01
+#: ... a component's tolerance is this many times its measured jitter (the largest of ~20 n-differences
+#: of Gaussian jitter lies near 3.5 jitters) ...
+NOISE_SIGMAS = 5.0
+#: ... once the jitter looks like noise: no drift (mean n-difference within this many standard errors of 0) ...
+NOISE_DRIFT_SIGMAS = 4.0
+#: ... and no smooth motion (every component's autocorrelation of the n-differences, averaged over
+#: lags 1..n, below this).
+NOISE_SMOOTHNESS = 0.5
+#: A cycle's level (largest component jitter) counts as the record's noise floor within this factor of
+#: the smallest over all cycles (estimates from 12 to 18 differences differ by up to ~1.6 by chance);
+#: a period-2n orbit whose two halves differ by less is read as period n, as the noise allows.
+NOISE_FLOOR_RATIO = 2.0
+#: Fewest lag-n pairs of n-differences a cycle n needs to measure the noise.
+NOISE_MIN_PAIRS = 6
 #: Closed-curve test: largest mean radius jump between angular neighbours [fraction of mean radius].
 CURVE_ROUGHNESS = 0.1
 #: Closed-curve test: largest angular gap between neighbours [rad].
@@ -146,6 +199,9 @@ class Motion:
         Periods simulated past the record for this label [forcing periods].
     lyapunov_pair : bool
         Whether the two-trajectory Lyapunov pair was run for this label.
+    noise : SectionNoise or None
+        The record's measured noise and the tolerance it set (noisy backends
+        only, module docstring "Noisy records").
     """
 
     label: str
@@ -154,6 +210,46 @@ class Motion:
     lyapunov_err: float = math.nan
     extension_periods: int = 0
     lyapunov_pair: bool = False
+    noise: SectionNoise | None = None
+
+
+@dataclass(frozen=True)
+class SectionNoise:
+    """A record's measured section noise (:func:`cycle_noise`, :func:`measured_noise`).
+
+    Attributes
+    ----------
+    cycle : int
+        The n whose n-differences were measured [forcing periods] (0: none could be).
+    jitter : float64[4] or float64[5]
+        Jitter of one section per normalised component ``(y, ydot, theta,
+        thetadot)`` [~rad], and of the swing's envelope [rad] where it was judged.
+    repeats : bool
+        Whether the record repeats after ``cycle`` periods within its noise:
+        the jitter looks like noise (small, no drift, not smooth) and every
+        n-difference is within ``tolerance``.
+    tolerance : float64 like ``jitter``
+        The tolerance per component the jitter sets [~rad]: :data:`NOISE_SIGMAS`
+        jitters plus the channel's finest step, never below :data:`PERIODIC_TOL`.
+    step : float64 like ``jitter``
+        The finest nonzero n-difference per component [~rad]: a quantised
+        channel's step (the encoder's), far below the jitter for a continuous one.
+    """
+
+    cycle: int
+    jitter: np.ndarray
+    repeats: bool
+    tolerance: np.ndarray
+    step: np.ndarray
+
+    @property
+    def largest_jitter(self) -> float:
+        return float(np.max(self.jitter))
+
+    @property
+    def applied_tolerance(self) -> float:
+        """The largest tolerance a repeat was judged with [~rad]: :data:`PERIODIC_TOL` unless it repeats within noise."""
+        return float(np.max(self.tolerance)) if self.repeats else PERIODIC_TOL
 
 
 @dataclass(frozen=True)
@@ -222,6 +318,100 @@ def section_periods(sections: np.ndarray, scales: np.ndarray, tol: float = PERIO
         mismatch = np.abs(section_difference(sections[:, n:], sections[:, :-n], divisors)).max(axis=(1, 2))
         period[(period == 0) & (mismatch < tol)] = n
     return period
+
+
+def cycle_noise(
+    sections: np.ndarray, scales: np.ndarray, n: int, envelope: np.ndarray | None = None
+) -> SectionNoise | None:
+    """The jitter of a record's n-differences, and whether it repeats after n periods within it.
+
+    Parameters
+    ----------
+    sections : float64[n_periods, >= 4]
+        Finite section states ``(y [m], ydot [m/s], theta [rad], thetadot [rad/s])``.
+    scales : float64[4]
+        Their normalisation (:func:`section_scales`).
+    n : int
+        The cycle [forcing periods].
+    envelope : float64[n_periods] or None
+        Each period's largest |theta| [rad] (record column ``theta_absmax``),
+        judged as a fifth component: a swing that decays or grows drifts there
+        even where the section, sampled near a zero crossing, hides it.
+
+    Returns
+    -------
+    SectionNoise or None
+        None when the record leaves fewer than :data:`NOISE_MIN_PAIRS` lag-n
+        pairs of n-differences (module docstring, "Noisy records").
+    """
+    if sections.shape[0] - 2 * n < NOISE_MIN_PAIRS:
+        return None
+    d = section_difference(sections[n:, :4], sections[:-n, :4], scales)
+    if envelope is not None:
+        d = np.column_stack([d, envelope[n:] - envelope[:-n]])
+    jitter = np.sqrt(np.mean(d**2, axis=0) / 2.0)  # d = e(k+n) - e(k): twice one section's variance
+    # A quantised channel (the encoder) differs by a whole step between two readings of one value:
+    # its finest step joins the tolerance (for a continuous channel it is far below the jitter).
+    magnitude = np.abs(d)
+    finest = np.where(magnitude > 0, magnitude, np.inf).min(axis=0)
+    step = np.where(np.isfinite(finest), finest, 0.0)
+    tolerance = np.maximum(PERIODIC_TOL, NOISE_SIGMAS * jitter + step)
+    no_drift = np.all(np.abs(d.mean(axis=0)) <= NOISE_DRIFT_SIGMAS * d.std(axis=0, ddof=1) / math.sqrt(d.shape[0]))
+    noise_like = jitter.max() <= NOISE_MAX and bool(no_drift) and not _smooth(d, n)
+    return SectionNoise(n, jitter, bool(noise_like and np.all(magnitude < tolerance)), tolerance, step)
+
+
+def _smooth(d: np.ndarray, n: int) -> bool:
+    """Whether some component of the n-differences ``d`` (m, c) moves smoothly rather than jitters.
+
+    Its autocorrelation averaged over lags 1..n reaches :data:`NOISE_SMOOTHNESS`:
+    for independent jitter it is -1/(2n) (0 at lags below n, -1/2 at n, where
+    consecutive differences share a section of opposite sign); for a drift, a
+    decaying swing or a torus's slow rotation it is near +1.
+    """
+    power = np.sum(d**2, axis=0)
+    lags = np.array([np.sum(d[:-lag] * d[lag:], axis=0) for lag in range(1, n + 1)])
+    correlation = lags.mean(axis=0) / np.where(power > 0, power, np.inf)
+    return bool(np.any(correlation >= NOISE_SMOOTHNESS))
+
+
+def measured_noise(sections: np.ndarray, scales: np.ndarray, envelope: np.ndarray | None = None) -> SectionNoise:
+    """A record's own section noise (module docstring, "Noisy records").
+
+    Every measurable cycle n gets its :func:`cycle_noise` (with the swing's
+    ``envelope`` [rad] when given); its level is its largest component's
+    jitter, each component counted at least at its finest step over the
+    record (a quantised channel's resolution). The smallest level over the
+    cycles is the record's noise floor, and the record's cycle is the
+    smallest n whose level is within :data:`NOISE_FLOOR_RATIO` of it: a shorter
+    cycle's larger jitter is motion (a period-4 orbit's two halves), not
+    noise. The result is that cycle's noise; its ``repeats`` says whether
+    the record repeats within it. A cycle at the floor that drifts or moves
+    smoothly makes the record undecided (a transient), whatever longer
+    cycles, with fewer differences to judge, might pass. With no cycle
+    measurable, or a value not finite: NaN jitter, the tolerance
+    :data:`PERIODIC_TOL`.
+    """
+    sections = np.asarray(sections, dtype=np.float64)
+    width = 4 if envelope is None else 5
+    cycles = []
+    if np.isfinite(sections[:, :4]).all() and (envelope is None or np.isfinite(envelope).all()):
+        cycles = [c for n in range(1, MAX_PERIOD + 1) if (c := cycle_noise(sections, scales, n, envelope)) is not None]
+    if not cycles:
+        return SectionNoise(0, np.full(width, math.nan), False, np.full(width, PERIODIC_TOL), np.zeros(width))
+    # A quantised channel's jitter is known only to its step (a few encoder flickers more or less):
+    # each component counts at least its finest step over the record.
+    step = np.min([c.step for c in cycles], axis=0)
+    levels = [float(np.max(np.maximum(c.jitter, step))) for c in cycles]
+    floor = min(levels)
+    return next(c for c, level in zip(cycles, levels) if level <= NOISE_FLOOR_RATIO * floor)
+
+
+def noisy_section_period(sections: np.ndarray, scales: np.ndarray, noise: SectionNoise) -> int:
+    """Smallest n with the section repeating to :data:`PERIODIC_TOL` or, on a noisy record, within its ``noise``."""
+    plain = section_period(sections, scales)
+    within_noise = noise.cycle if noise.repeats else 0
+    return min(n for n in (plain, within_noise) if n) if plain or within_noise else 0
 
 
 def lyapunov_estimate(log_stretch: np.ndarray, block: int = LYAP_BLOCK) -> tuple[float, float]:
@@ -307,33 +497,47 @@ def decided_by_record(
     status: Status = Status.OK,
     rest_threshold: float = ENCODER_RESOLUTION,
     period: int | None = None,
+    noise: SectionNoise | None = None,
 ) -> Motion | None:
     """The label when the record alone decides it, else None (the point needs :class:`Evidence`).
 
     ``rest_threshold`` [rad] is the run's "at rest" limit (:func:`at_rest`);
     ``period`` is the record's :func:`section_period` when already computed
-    (:func:`classify_runs` computes many at once).
+    (:func:`classify_runs` computes many at once); ``noise`` the record's
+    :func:`measured_noise` on a noisy backend (its tolerance decides a repeat).
     """
     if status is not Status.OK or not np.isfinite(records).all():
         return Motion("n/a")
     if at_rest(records[:, REC_THETA_ABSMAX], rest_threshold):
         return Motion("semi-trivial")
-    n = section_period(records[:, _SEC], scales) if period is None else period
-    if n:
-        return Motion("rotating" if np.any(records[:, REC_ROTATIONS] != 0) else f"periodic-{n}", n)
+    if noise is not None and at_rest(records[-1, REC_THETA_ABSMAX], rest_threshold):
+        return Motion("transient")  # still coming to rest: a repeat within noise is no orbit yet
+    if period is None:
+        sections = records[:, _SEC]
+        period = section_period(sections, scales) if noise is None else noisy_section_period(sections, scales, noise)
+    if period:
+        return Motion("rotating" if np.any(records[:, REC_ROTATIONS] != 0) else f"periodic-{period}", period)
     if at_rest(records[-1, REC_THETA_ABSMAX], rest_threshold):
         return Motion("transient")  # still coming to rest
     return None
 
 
-def classify_with_evidence(records: np.ndarray, scales: np.ndarray, ev: Evidence) -> Motion:
-    """The label of an undecided record (:func:`decided_by_record` gave None) from its evidence."""
+def classify_with_evidence(records: np.ndarray, scales: np.ndarray, ev: Evidence, noisy: bool = False) -> Motion:
+    """The label of an undecided record (:func:`decided_by_record` gave None) from its evidence.
+
+    ``noisy``: the backend's records carry noise, so whether the extension's
+    tail repeats is decided with the tail's own :func:`measured_noise`.
+    """
     lle, err = lyapunov_estimate(ev.log_stretch)
     if lle > LYAP_SIGMAS * err and lle > LYAP_FLOOR:
         return Motion("chaotic", 0, lle, err)
     if np.any(records[:, REC_ROTATIONS] != 0):
         return Motion("rotating", 0, lle, err)
-    if section_period(ev.sections[-TAIL_PERIODS:], scales) or (lle < -LYAP_SIGMAS * err and lle < -LYAP_FLOOR):
+    tail = ev.sections[-TAIL_PERIODS:]
+    settles = (
+        noisy_section_period(tail, scales, measured_noise(tail, scales)) if noisy else section_period(tail, scales)
+    )
+    if settles or (lle < -LYAP_SIGMAS * err and lle < -LYAP_FLOOR):
         return Motion("transient", 0, lle, err)
     if closed_curve(ev.sections, scales):
         return Motion("quasi-periodic", 0, lle, err)
@@ -346,19 +550,21 @@ def classify_records(
     status: Status = Status.OK,
     evidence: Callable[[], Evidence] | None = None,
     rest_threshold: float = ENCODER_RESOLUTION,
+    noisy: bool = False,
 ) -> Motion:
     """Classify one unit from its per-period records (``pendsweep.kernels.RECORD_COLUMNS``).
 
     ``evidence`` is called only when the record itself is not decisive
     (not at rest, not periodic); without it such points are ``transient``.
     ``rest_threshold`` [rad] is the run's "at rest" limit (:func:`at_rest`).
+    ``noisy``: the records carry noise; periodicity is judged with the
+    tolerance of their :func:`measured_noise` (module docstring, "Noisy records").
     """
-    motion = decided_by_record(records, scales, status, rest_threshold)
-    if motion is not None:
-        return motion
-    if evidence is None:
-        return Motion("transient")  # undecidable here
-    return classify_with_evidence(records, scales, evidence())
+    noise = measured_noise(records[:, _SEC], scales, records[:, REC_THETA_ABSMAX]) if noisy else None
+    motion = decided_by_record(records, scales, status, rest_threshold, noise=noise)
+    if motion is None:
+        motion = Motion("transient") if evidence is None else classify_with_evidence(records, scales, evidence(), noisy)
+    return replace(motion, noise=noise)
 
 
 def backend_evidence(
@@ -472,8 +678,13 @@ def staged_extension(
     return sections, repeated, periods
 
 
-def _section_periods_of(runs: Sequence[PointRun], scales: list[np.ndarray]) -> dict[int, int]:
-    """:func:`section_period` of every finite record, by index, computed together per record length."""
+def _section_periods_of(
+    runs: Sequence[PointRun], scales: list[np.ndarray], noises: dict[int, SectionNoise]
+) -> dict[int, int]:
+    """:func:`section_period` of every finite record, by index, computed together per record length.
+
+    A record with a measured noise (``noises``, noisy backends) may repeat within it (:func:`noisy_section_period`).
+    """
     by_length: dict[int, list[int]] = {}
     for j, r in enumerate(runs):
         if r.status is Status.OK and np.isfinite(r.records).all():
@@ -484,6 +695,9 @@ def _section_periods_of(runs: Sequence[PointRun], scales: list[np.ndarray]) -> d
             np.stack([runs[j].records[:, _SEC] for j in group]), np.stack([scales[j] for j in group])
         )
         periods.update(zip(group, found.tolist()))
+    for j, noise in noises.items():
+        if j in periods and noise.repeats:
+            periods[j] = min(n for n in (periods[j], noise.cycle) if n)
     return periods
 
 
@@ -516,14 +730,27 @@ def classify_runs(
     Returns
     -------
     list of Motion
-        With ``extension_periods`` and ``lyapunov_pair`` telling the evidence each point needed.
+        With ``extension_periods`` and ``lyapunov_pair`` telling the evidence each point
+        needed, and on a noisy backend (``backend.noisy``) the record's measured ``noise``.
     """
     if evidence not in EVIDENCE_MODES:
         raise ValueError(f"evidence = {evidence!r}; choose one of {', '.join(EVIDENCE_MODES)}")
     scales = [section_scales(r.records, q) if r.status is Status.OK else np.ones(4) for q, r in zip(params, runs)]
-    periods = _section_periods_of(runs, scales)
+    noisy = bool(backend.noisy)
+    noises = {
+        j: measured_noise(r.records[:, _SEC], s, r.records[:, REC_THETA_ABSMAX])
+        for j, (r, s) in enumerate(zip(runs, scales))
+        if noisy and r.status is Status.OK
+    }
+    motions = _labelled(backend, params, runs, scales, noises, rest_threshold, evidence, noisy)
+    return [replace(m, noise=noises.get(j)) for j, m in enumerate(motions)] if noisy else motions
+
+
+def _labelled(backend, params, runs, scales, noises, rest_threshold, evidence, noisy) -> list[Motion]:
+    """The labels of :func:`classify_runs` (``noises``: measured per finished record when ``noisy``)."""
+    periods = _section_periods_of(runs, scales, noises)
     motions = [
-        decided_by_record(r.records, s, r.status, rest_threshold, periods.get(j))
+        decided_by_record(r.records, s, r.status, rest_threshold, periods.get(j), noises.get(j))
         for j, (r, s) in enumerate(zip(runs, scales))
     ]
     undecided = [j for j, m in enumerate(motions) if m is None]
@@ -539,7 +766,7 @@ def classify_runs(
             rest_threshold,
         )  # fmt: skip
         for j, ev in zip(undecided, found):
-            motion = classify_with_evidence(runs[j].records, scales[j], ev)
+            motion = classify_with_evidence(runs[j].records, scales[j], ev, noisy)
             motions[j] = replace(motion, extension_periods=EXTEND_PERIODS, lyapunov_pair=True)
         return motions
     # A record with rotations is rotating or chaotic, and only the Lyapunov pair tells which.
@@ -558,7 +785,7 @@ def classify_runs(
     )  # fmt: skip
     for j, ev in zip(pending, found):
         sections_j, periods_j = extension.get(j, (np.empty((0, 4)), 0))
-        motion = classify_with_evidence(runs[j].records, scales[j], Evidence(sections_j, ev.log_stretch))
+        motion = classify_with_evidence(runs[j].records, scales[j], Evidence(sections_j, ev.log_stretch), noisy)
         motions[j] = replace(motion, extension_periods=periods_j, lyapunov_pair=True)
     return motions
 

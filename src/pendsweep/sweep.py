@@ -39,7 +39,7 @@ import numpy as np
 import pyarrow as pa
 
 from .backends import BACKENDS, make_backend
-from .classify import EVIDENCE_MODES, at_rest, classify_runs
+from .classify import EVIDENCE_MODES, Motion, at_rest, classify_runs
 from .columns import to_numpy
 from .errors import ConfigError
 from .executors import Executor
@@ -306,12 +306,24 @@ def run_units(config: SweepConfig, backend, params: list, states: np.ndarray, th
     return runs, settled.settled, settled.periods_done
 
 
+def _classified_fields(motion: Motion, backend) -> dict:
+    """The :class:`PointResult` fields a classification fills: the label and, on a noisy backend, its noise."""
+    if not backend.noisy:
+        return {"motion": motion.label}
+    noise = motion.noise
+    return {
+        "motion": motion.label,
+        "section_noise": math.nan if noise is None else noise.largest_jitter,
+        "periodic_tol": math.nan if noise is None else noise.applied_tolerance,
+    }
+
+
 def _classified(config, backend, pending: list[tuple[PointResult, ModelParams]]) -> Iterator[UnitResult]:
     """The pending points of a continue branch, labelled together (one evidence launch), as units."""
     motions = classify_runs(
         backend, [q for _, q in pending], [r.run for r, _ in pending], config.rest_threshold, config.evidence
     )
-    labelled = [dataclasses.replace(r, motion=m.label) for (r, _), m in zip(pending, motions)]
+    labelled = [dataclasses.replace(r, **_classified_fields(m, backend)) for (r, _), m in zip(pending, motions)]
     yield from unit_results(labelled, config.parameter, config.transient == "auto")
 
 
@@ -367,7 +379,17 @@ def _independent_units(config, backend, units, threads) -> list[UnitResult]:
     motions = classify_runs(backend, params, runs, config.rest_threshold, config.evidence)
     return unit_results(
         [
-            PointResult("none", i, s, config.values[i], run, False, motion.label, bool(ok), int(n))
+            PointResult(
+                "none",
+                i,
+                s,
+                config.values[i],
+                run,
+                False,
+                settled=bool(ok),
+                transient_used=int(n),
+                **_classified_fields(motion, backend),
+            )
             for (i, s), run, motion, ok, n in zip(units, runs, motions, settled, used)
         ],
         config.parameter,

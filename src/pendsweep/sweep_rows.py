@@ -38,6 +38,10 @@ class PointResult:
     motion: str = ""
     settled: bool = False
     transient_used: int = 0
+    #: On a noisy backend: the record's measured section jitter and the periodicity tolerance applied
+    #: [normalised, ~rad] (:class:`pendsweep.classify.SectionNoise`; NaN where not measured). None: noise-free.
+    section_noise: float | None = None
+    periodic_tol: float | None = None
 
     @property
     def key(self) -> str:
@@ -48,7 +52,8 @@ def result_rows(results: list[PointResult], parameter: str, adaptive: bool) -> p
     """Long-form rows of units, one row per recorded period, the units one after another.
 
     ``parameter`` names the swept value's column; ``adaptive`` (``--transient
-    auto``) adds the columns ``settled`` and ``transient_periods_used``.
+    auto``) adds the columns ``settled`` and ``transient_periods_used``; units
+    of a noisy backend add ``section_noise`` and ``periodic_tol``.
     Built from whole columns for all the units at once: a dense sweep's
     task holds hundreds of units, and a table each cost more than their
     classification (:func:`unit_results` slices this one instead).
@@ -77,6 +82,9 @@ def result_rows(results: list[PointResult], parameter: str, adaptive: bool) -> p
     if results and results[0].run.round_trip is not None:  # a remote rig: the protocol's timing [s]
         for k, name in enumerate(("round_trip_p50", "round_trip_p99", "round_trip_max")):
             columns[name] = per_row([r.run.round_trip[k] for r in results], np.float64)
+    if results and results[0].section_noise is not None:  # a noisy backend: what the classifier measured
+        columns["section_noise"] = per_row([r.section_noise for r in results], np.float64)
+        columns["periodic_tol"] = per_row([r.periodic_tol for r in results], np.float64)
     if adaptive:
         columns["settled"] = per_row([r.settled for r in results], np.bool_)
         columns["transient_periods_used"] = per_row([r.transient_used for r in results], np.int64)

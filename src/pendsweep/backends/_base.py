@@ -34,11 +34,16 @@ backend must:
    True). A backend whose specimen lives elsewhere (a remote rig) is not:
    sweeps then run fresh points one at a time, and the classifier judges
    points by their records alone.
+9. Say whether its records carry measurement or process noise
+   (``noisy``; default False). The classifier then measures each record's
+   own noise and sets its periodicity tolerance from it
+   (:func:`pendsweep.classify.measured_noise`); a noise-free record must
+   repeat to :data:`pendsweep.classify.PERIODIC_TOL`.
 
 :class:`BackendBase` supplies the defaults (a state whose first four
 entries are ``(y, ydot, theta, thetadot)``, the per-point fallback of
 :meth:`run_points`, steps from a ``dt`` field, options from the fields,
-``restartable``).
+``restartable``, ``noisy``).
 """
 
 from __future__ import annotations
@@ -84,6 +89,11 @@ class Backend(Protocol):
 
     @property
     def restartable(self) -> bool: ...
+
+    @property
+    def noisy(self) -> bool:
+        """Whether records carry sensor or process noise (module docstring item 9)."""
+        ...
 
     @property
     def min_batch_points(self) -> int:
@@ -146,6 +156,11 @@ class BackendBase:
         the classifier cannot re-run a point for its evidence.
         """
         return True
+
+    @property
+    def noisy(self) -> bool:
+        """Whether records carry sensor or process noise: False, a noise-free model (module docstring item 9)."""
+        return False
 
     @property
     def min_batch_points(self) -> int:

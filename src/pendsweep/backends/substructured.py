@@ -252,6 +252,18 @@ class SubstructuredBackend(BackendBase):
         """A remote rig starts every run from the site's own initial state (one controller at a time)."""
         return not self.rig
 
+    @property
+    def noisy(self) -> bool:
+        """Whether records carry noise: a remote rig's sensors always do; the virtual rig's unless all are exact.
+
+        The load cell's noise drives the numerical model (process noise on
+        ``y*``), the encoder quantises ``theta``, the LVDT's noise reaches the
+        command through the loop. The servo's harmonics repeat every forcing
+        period and are no noise to a stroboscopic section.
+        """
+        sources = (self.force_noise, self.encoder_resolution, self.lvdt_resolution, self.lvdt_noise)
+        return bool(self.rig) or any(v > 0 for v in sources)
+
     def validate(self, params: ModelParams) -> None:
         if params.M1 <= 0 or params.C1 < 0:
             raise ConfigError(
