@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from pendsweep.params import ModelParams
+from pendsweep.site.access import LOOPBACK_NETWORKS, parse_allow
 from pendsweep.site.log import SiteLog
 from pendsweep.site.rig import rig_from_options
 from pendsweep.site.server import SiteServer
@@ -23,10 +24,14 @@ OPENSEES_SETUP = (1, 1, 1, 0, 1, 0, 0, 0, 1, 0, 256)
 
 
 class RawClient:
-    """A protocol client that sends whatever it is told (the tests' adversary)."""
+    """A protocol client that sends whatever it is told (the tests' adversary).
 
-    def __init__(self, port: int, host: str = "127.0.0.1") -> None:
-        self.sock = socket.create_connection((host, port), timeout=5)
+    ``source`` binds the client's own address first (another loopback address,
+    127.0.0.2 and the like, plays a host on the lab network).
+    """
+
+    def __init__(self, port: int, host: str = "127.0.0.1", source: str | None = None) -> None:
+        self.sock = socket.create_connection((host, port), timeout=5, source_address=(source, 0) if source else None)
         self.sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         self.data_size = 0
 
@@ -66,13 +71,21 @@ class RawClient:
 
 
 class ThreadSite:
-    """A ``--once`` site served from a thread of this process, with a short timeout."""
+    """A ``--once`` site served from a thread of this process, with a short timeout (``allow``: as ``--allow``)."""
 
-    def __init__(self, options: dict | None = None, timeout: float = 1.0, log_path: Path | None = None, **sets):
+    def __init__(
+        self,
+        options: dict | None = None,
+        timeout: float = 1.0,
+        log_path: Path | None = None,
+        allow: tuple[str, ...] = (),
+        **sets,
+    ):
         params = ModelParams.from_mapping(sets)
         self.rig, config = rig_from_options(dict(options or {}), params)
         self.log = SiteLog(log_path, config)
-        self.server = SiteServer(self.rig, self.log, port=0, once=True, timeout=timeout)
+        allowed = parse_allow(allow) if allow else LOOPBACK_NETWORKS
+        self.server = SiteServer(self.rig, self.log, allow=allowed, port=0, once=True, timeout=timeout)
         self.port = self.server.address[1]
         self.status: int | None = None
         self.thread = threading.Thread(target=self._serve, daemon=True)

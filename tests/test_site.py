@@ -6,6 +6,7 @@ is in ``test_opensees.py``.
 
 from __future__ import annotations
 
+import json
 import math
 import socket
 import struct
@@ -21,6 +22,7 @@ from pendsweep import FIG9_PO, make_backend
 from pendsweep.errors import ConfigError
 from pendsweep.params import ModelParams
 from pendsweep.site import ProtocolError, opensees_setup, parse_setup
+from pendsweep.site.access import LOOPBACK_NETWORKS, admits, loopback_only_warning, parse_allow
 from pendsweep.site.rig import rig_from_options
 from site_helpers import OPENSEES_SETUP, RawClient, SiteProcess, ThreadSite
 
@@ -298,6 +300,70 @@ def test_a_second_client_is_refused_while_the_first_is_served(capfd):
     second.close()
 
 
+# -- who may drive the rig: the allow-list ------------------------------------------------------------
+def _site_metadata(path) -> dict:
+    return json.loads(pq.read_table(path).schema.metadata[b"pendsweep"])
+
+
+def test_the_default_allow_list_admits_any_loopback_address():
+    site = ThreadSite(timeout=2.0)
+    client = RawClient(site.port, source="127.0.0.2")
+    client.setup()
+    _ok_steps(client, 5)
+    client.frame(99)
+    assert site.join() == 0
+    assert site.server.sessions[-1].peer.startswith("127.0.0.2:") and site.log.n_rows == 5
+    assert site.log.refused_total == 0
+    client.close()
+
+
+@pytest.mark.parametrize(
+    ("allow", "outsider", "member"),
+    [(("127.0.0.1",), "127.0.0.2", "127.0.0.1"), (("127.0.0.0/30",), "127.0.0.9", "127.0.0.2")],
+    ids=["address", "cidr"],
+)
+def test_a_client_outside_the_allow_list_is_closed_before_set_up(allow, outsider, member, tmp_path, capfd):
+    """Refused before and during the one session of a --once site: it neither ends the site nor is its client.
+
+    Admitted, the first outsider would have been the session (the site waits 1 s
+    for its set-up, then ends with a fault): the member's clean session proves it was not.
+    """
+    site = ThreadSite(timeout=1.0, allow=allow, log_path=tmp_path / "log.parquet")
+    early = RawClient(site.port, source=outsider)
+    assert early.sock.recv(16) == b""  # closed by the site without a byte, and without waiting for a set-up
+    client = RawClient(site.port, source=member)
+    client.setup()
+    _ok_steps(client, 5)
+    late = RawClient(site.port, source=outsider)
+    assert late.sock.recv(16) == b""
+    for k in range(5, 10):
+        client.step(1e-5 * k, 1e-2, (k + 1) * DT)  # the session in progress goes on
+    client.frame(99)
+    assert site.join() == 0
+    assert len(site.server.sessions) == 1 and site.log.n_rows == 10
+    refused = _site_metadata(tmp_path / "log.parquet")["refused"]
+    assert [r["peer"].rsplit(":", 1)[0] for r in refused] == [outsider, outsider]
+    assert capfd.readouterr().err.count(f"pendsweep site: refused client {outsider}:") == 2
+    for each in (early, client, late):
+        each.close()
+
+
+def test_the_allow_list_reads_ipv6_and_ipv4_mapped_addresses():
+    assert admits(LOOPBACK_NETWORKS, "::1") and admits(LOOPBACK_NETWORKS, "::ffff:127.0.0.2")
+    assert not admits(LOOPBACK_NETWORKS, "::ffff:192.168.10.7") and not admits(LOOPBACK_NETWORKS, "192.168.10.7")
+    lab = parse_allow(["fd00::/64, 192.168.10.0/24", "10.1.2.3"])
+    assert [str(n) for n in lab] == ["fd00::/64", "192.168.10.0/24", "10.1.2.3/32"]
+    assert admits(lab, "fd00::5") and admits(lab, "::ffff:192.168.10.7") and admits(lab, "10.1.2.3")
+    assert not admits(lab, "10.1.2.4") and not admits(lab, "127.0.0.1")  # given networks replace loopback
+
+
+@pytest.mark.parametrize("value", ["10.0.0.0/33", "127.0.0.1,", "fd00::/129", "localhost"])
+def test_an_allow_value_that_is_no_address_or_network_is_named(value):
+    bad = value.split(",")[-1]
+    with pytest.raises(ConfigError, match=f"--allow '{bad}' is not an IPv4 or IPv6 address or CIDR network"):
+        parse_allow([value])
+
+
 def test_random_bytes_never_hang_the_site():
     rng = np.random.default_rng(21)
     for trial in range(25):
@@ -396,7 +462,7 @@ def test_a_sweep_runs_through_a_remote_rig(tmp_path):
 @pytest.mark.parametrize(
     ("args", "expect"),
     [
-        (["--mode", "continue"], "use --mode fresh"),
+        (["--mode", "multistart"], "not multistart"),
         (["--mode", "fresh", "-B", "force_noise=0.5"], "force_noise describes the rig"),
         (["--mode", "fresh", "-B", "harmonic3=0.1"], "harmonic3 describes the rig"),  # even at its default
         (["--mode", "fresh", "-B", "rig=udp://x:1"], "give tcp://HOST:PORT"),
@@ -433,6 +499,8 @@ def test_an_unreachable_rig_fails_with_status_1(tmp_path):
         (["--set", "m=-1"], "m"),
         (["-o", "log.csv"], ".parquet"),
         (["--theta0", "inf"], "not finite"),
+        (["--allow", "127.0.0.1,lab-pc"], "--allow 'lab-pc' is not an IPv4 or IPv6 address or CIDR network"),
+        (["--allow", "10.0.0.1/24"], "give the network 10.0.0.0/24 or the address 10.0.0.1"),
     ],
 )
 def test_site_bad_input_exits_2_with_one_line(args, expect, tmp_path):
@@ -462,6 +530,42 @@ def test_site_command_once_logs_and_summarises(tmp_path):
     meta = __import__("json").loads(table.schema.metadata[b"pendsweep"])
     assert meta["kind"] == "site-log" and meta["config"]["initial"]["theta0"] == 0.2
     assert meta["config"]["rig"]["actuator"] == "ideal" and meta["sessions"][0]["ended"] == "die"
+
+
+def test_a_site_beyond_loopback_without_allow_warns_once_and_serves_loopback(tmp_path):
+    assert loopback_only_warning("127.0.0.1", allow_given=False) is None
+    assert loopback_only_warning("::ffff:127.0.0.1", allow_given=False) is None
+    assert loopback_only_warning("0.0.0.0", allow_given=True) is None
+    assert "only loopback clients" in loopback_only_warning("::", allow_given=False)
+    log = tmp_path / "log.parquet"
+    site = SiteProcess("--once", "--host", "0.0.0.0", "-o", str(log))  # a free port, only ever reached from loopback
+    client = RawClient(site.port, source="127.0.0.2")
+    client.setup()
+    client.frame(99)
+    status, err = site.finish()
+    client.close()
+    assert status == 0, err
+    assert err.count("only loopback clients (127.0.0.0/8, ::1) will be accepted; give --allow") == 1, err
+    assert _site_metadata(log)["config"]["allow"] == ["127.0.0.0/8", "::1/128"]
+
+
+def test_site_command_allow_refuses_other_clients_and_logs_them(tmp_path):
+    log = tmp_path / "log.parquet"
+    site = SiteProcess("--once", "--allow", "127.0.0.1, ::1", "-o", str(log))
+    outsider = RawClient(site.port, source="127.0.0.2")
+    assert outsider.sock.recv(16) == b""
+    client = RawClient(site.port)
+    client.setup()
+    client.step(0.0, 0.0, DT)
+    client.frame(99)
+    status, err = site.finish()
+    outsider.close()
+    client.close()
+    assert status == 0, err
+    assert "pendsweep site: refused client 127.0.0.2:" in err and "warning" not in err
+    meta = _site_metadata(log)
+    assert meta["config"]["allow"] == ["127.0.0.1/32", "::1/128"]
+    assert meta["refused_total"] == 1 and meta["sessions"][0]["ended"] == "die"
 
 
 def test_site_command_fault_exits_1_and_keeps_the_log(tmp_path):

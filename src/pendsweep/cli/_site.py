@@ -22,7 +22,16 @@ TIMEOUT_S = FiniteFloat(1e-3, 3600.0, "s")
     "--host",
     default="127.0.0.1",
     show_default=True,
-    help="Address to listen on (loopback unless told otherwise; 0.0.0.0 for every interface).",
+    help="Address to listen on (loopback unless told otherwise; 0.0.0.0 for every interface, with --allow "
+    "naming the clients).",
+)
+@click.option(
+    "--allow",
+    multiple=True,
+    metavar="ADDR|CIDR[,...]",
+    help="Client addresses that may drive the rig: IPv4 or IPv6 addresses or CIDR networks (e.g. 192.168.10.0/24), "
+    "comma-separated or repeated. They replace the default, loopback only (127.0.0.0/8, ::1); any other client is "
+    "closed at connect, before its set-up is read, with a line on stderr and in the log.",
 )
 @click.option("--once", is_flag=True, help="Serve one client, exit after its die message (status 0) or a fault (1).")
 @click.option("-o", "--output", type=PATH, default=None, help="Log, one row per committed step (.parquet).")
@@ -53,12 +62,15 @@ TIMEOUT_S = FiniteFloat(1e-3, 3600.0, "s")
     show_default=True,
     help="A client silent for longer [s] is a fault (0.001 to 3600).",
 )
-def site_command(port, host, once, output, theta0, thetadot0, sets, rig_opts, realtime, timeout):
+def site_command(port, host, allow, once, output, theta0, thetadot0, sets, rig_opts, realtime, timeout):
     """Serve the pendulum on its platform as an OpenFresco experimental site.
 
     Any client of OpenFresco's TCP protocol drives it: OpenSees's genericClient
     element, or `--backend substructured -B rig=tcp://HOST:PORT`. One client at
-    a time; each starts the rig from its initial state. Exit status with --once:
+    a time, from an address --allow admits (default loopback only; a site
+    listening beyond loopback without --allow warns so at start); each starts
+    the rig from its initial state. A refused client is no session and never
+    ends a --once site. Exit status with --once:
     0 when the client ended with die, 1 on a fault (the reason is on stderr and
     in the log's metadata); 2 for a bad command line. SIGINT or SIGTERM stop
     the site with its log written: status 0 between sessions, 1 mid-session.
@@ -66,6 +78,7 @@ def site_command(port, host, once, output, theta0, thetadot0, sets, rig_opts, re
     import signal
 
     from ..params import ModelParams
+    from ..site.access import LOOPBACK_NETWORKS, loopback_only_warning, parse_allow
     from ..site.log import SiteLog
     from ..site.rig import rig_from_options
     from ..site.server import SiteServer
@@ -75,20 +88,34 @@ def site_command(port, host, once, output, theta0, thetadot0, sets, rig_opts, re
 
         check_output(output, "-o/--output", (".parquet",))
         check_writable(output)  # before listening: a session must never be lost to an unwritable log
+    allowed = parse_allow(allow) if allow else LOOPBACK_NETWORKS
     params = ModelParams.from_mapping(model_sets(sets))
     rig, config = rig_from_options(key_values(rig_opts, "-B"), params, theta0, thetadot0)
-    config |= {"host": host, "port": port, "once": once, "realtime": realtime, "timeout_s": timeout}
+    config |= {
+        "host": host,
+        "allow": [str(network) for network in allowed],
+        "port": port,
+        "once": once,
+        "realtime": realtime,
+        "timeout_s": timeout,
+    }
     log = SiteLog(output, config)
     import socket
 
     from ..errors import ConfigError, RunFailure
 
     try:
-        server = SiteServer(rig, log, host=host, port=port, once=once, timeout=timeout, realtime=realtime)
+        server = SiteServer(
+            rig, log, host=host, allow=allowed, port=port, once=once, timeout=timeout, realtime=realtime
+        )
     except OSError as exc:
         if isinstance(exc, socket.gaierror) or (exc.errno or 0) < 0:  # not an address (getaddrinfo's codes are < 0)
             raise ConfigError(f"--host {host!r} is not an address to listen on ({exc.strerror or exc})") from None
         raise RunFailure(f"cannot listen on {host}:{port}: {exc.strerror or exc}") from None  # e.g. a port in use
+
+    warning = loopback_only_warning(server.address[0], allow_given=bool(allow))  # the bound address, not a name
+    if warning:
+        click.echo(f"pendsweep site: {warning}", err=True)
 
     def stop(signum, frame):
         raise KeyboardInterrupt

@@ -29,7 +29,9 @@ late                  the force went out more than one step after its time (real
 
 The file is rewritten whole and atomically after every session and when the
 site stops (never half-written); the metadata (kind ``site-log``) holds the
-full configuration and one summary per session, with its end reason.
+full configuration, one summary per session, with its end reason, and the
+clients refused by the allow-list (``refused``: peer, time, reason, the first
+:data:`MAX_REFUSALS_KEPT` of them; ``refused_total`` counts them all).
 """
 
 from __future__ import annotations
@@ -48,6 +50,9 @@ LOG_COLUMNS = (
 )  # fmt: skip
 #: Rows per allocation of the in-memory log.
 LOG_CHUNK = 8192
+#: Refused clients kept one by one in the metadata; later ones are only counted, so that a flood of
+#: connections from outside the allow-list cannot grow the site's memory without bound.
+MAX_REFUSALS_KEPT = 1000
 _READINGS = ("x", "x_meas", "xdot", "xddot_mean", "theta", "theta_true", "thetadot", "Fs", "Fs_true")
 _READING_AT = np.array([READING_INDEX[name] for name in _READINGS])
 
@@ -68,6 +73,8 @@ class SiteLog:
         self._chunks: list[np.ndarray] = []
         self.n_rows = 0
         self.sessions: list[dict[str, Any]] = []
+        self.refused: list[dict[str, str]] = []
+        self.refused_total = 0
         self.session = -1
         self.session_start = 0.0
         self._step = 0
@@ -93,6 +100,12 @@ class SiteLog:
     def end_session(self, summary) -> None:
         self.sessions.append(summary.to_dict())
 
+    def refuse(self, peer: str, reason: str) -> None:
+        """Keep one client refused at connect (called from the site's accepting thread, never a session's)."""
+        self.refused_total += 1
+        if len(self.refused) < MAX_REFUSALS_KEPT:
+            self.refused.append({"peer": peer, "time": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "reason": reason})
+
     def columns(self) -> dict[str, np.ndarray]:
         data = np.concatenate(self._chunks)[: self.n_rows] if self._chunks else np.empty((0, len(LOG_COLUMNS)))
         out = {name: np.ascontiguousarray(data[:, i]) for i, name in enumerate(LOG_COLUMNS)}
@@ -113,6 +126,8 @@ class SiteLog:
             "kind": "site-log",
             "config": self.config,
             "sessions": self.sessions,
+            "refused": list(self.refused),  # a copy: the accepting thread may append while this is written
+            "refused_total": self.refused_total,
             "package_version": __version__,
             "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
         }

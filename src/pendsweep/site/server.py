@@ -25,13 +25,17 @@ Anything else ends the session with a one-line reason (:class:`ProtocolError`):
 the rig is held at its committed state, the log up to the last committed
 step is written, and with ``once`` the site exits with status 1. A second
 client that connects while one is served is told nothing and closed, with a
-line on stderr; the session in progress goes on.
+line on stderr; the session in progress goes on. So is a client whose address
+is outside the allow-list (:mod:`.access`), at whatever moment it connects:
+before a byte of its set-up is read, kept in the log's metadata, never a
+session (it neither ends a ``once`` site nor counts as its client).
 """
 
 from __future__ import annotations
 
 import gc
 import math
+import select
 import socket
 import sys
 import threading
@@ -41,6 +45,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .access import LOOPBACK_NETWORKS, Network, admits
 from .log import SiteLog
 from .protocol import (
     ACTIONS,
@@ -60,6 +65,10 @@ from .rig import READING_INDEX, SiteRig
 #: Waits shorter than this [s] spin instead of sleeping: a process woken from sleep on a shared
 #: virtual machine is sometimes scheduled a millisecond late, a whole step at 1 kHz.
 SPIN_SECONDS = 5e-3
+#: Seconds a new connection has to send its first byte or close: one that closes unheard is a
+#: readiness probe (``pendsweep wait``, ``nc -z``), which must neither end a ``--once`` site nor enter
+#: its log. A client sends its set-up at once; a silent one only starts its session this much later.
+PROBE_SECONDS = 0.5
 
 DAQ_SOURCES = {  # daq quantity -> reading names, in the order they are sent
     "disp": ("x_meas", "theta"),
@@ -146,11 +155,18 @@ class _Pacer:
 
 
 class _Refuser(threading.Thread):
-    """Accepts and closes every client that connects while a session runs (the rig has one controller)."""
+    """Accepts every client; closes at once those outside the allow-list and those that connect while a session runs.
 
-    def __init__(self, listener: socket.socket) -> None:
+    The rig has one controller, and only an allowed address may be it. A
+    refusal happens here, in the accepting thread, so a session in progress
+    never waits for one.
+    """
+
+    def __init__(self, listener: socket.socket, allow: tuple[Network, ...], log: SiteLog) -> None:
         super().__init__(daemon=True)
         self.listener = listener
+        self.allow = allow
+        self.log = log
         self.busy = threading.Event()
         self.pending: list[socket.socket] = []
         self.lock = threading.Lock()
@@ -161,7 +177,11 @@ class _Refuser(threading.Thread):
                 conn, addr = self.listener.accept()
             except OSError:
                 return
-            if self.busy.is_set():
+            if not admits(self.allow, addr[0]):
+                conn.close()  # before a byte is read: an unknown host's set-up never reaches the parser
+                _say(f"refused client {addr[0]}:{addr[1]}: its address is not in the allow-list (--allow)")
+                self.log.refuse(f"{addr[0]}:{addr[1]}", "address not in the allow-list")
+            elif self.busy.is_set():
                 _say(f"refused a second client {addr[0]}:{addr[1]}: a session is in progress")
                 conn.close()
             else:
@@ -177,6 +197,20 @@ class _Refuser(threading.Thread):
                     return self.pending.pop(0)
             time.sleep(0.01)
         return None
+
+
+def closed_unheard(conn: socket.socket, within: float = PROBE_SECONDS) -> bool:
+    """Whether the peer closed ``conn`` before sending a byte: a readiness probe, not a client.
+
+    Waits up to ``within`` seconds for the first byte or the close; a peer
+    silent for longer is served as a client (and times out as one).
+    """
+    try:
+        if not select.select([conn], [], [], within)[0]:
+            return False
+        return not conn.recv(1, socket.MSG_PEEK)
+    except OSError:  # reset before its first byte: gone without a word, as a probe
+        return True
 
 
 def serve_session(conn: socket.socket, rig: SiteRig, log: SiteLog, timeout: float, realtime: bool) -> SessionSummary:
@@ -299,6 +333,8 @@ class SiteServer:
     log : SiteLog
     host : str
         Address to listen on (default loopback only).
+    allow : tuple of IPv4Network or IPv6Network
+        Client addresses served (default loopback only); others are closed at connect.
     port : int
         0: the system picks a free port (printed on stderr, and in :attr:`address`).
     once : bool
@@ -312,6 +348,7 @@ class SiteServer:
     rig: SiteRig
     log: SiteLog
     host: str = "127.0.0.1"
+    allow: tuple[Network, ...] = LOOPBACK_NETWORKS
     port: int = 0
     once: bool = False
     timeout: float = 10.0
@@ -329,7 +366,7 @@ class SiteServer:
 
     def serve(self) -> int:
         """Run sessions; returns the exit status (0: the last session ended with die, 1: with a fault)."""
-        refuser = _Refuser(self.listener)
+        refuser = _Refuser(self.listener, self.allow, self.log)
         refuser.start()
         rig = self.rig
         mass = f"mass {rig.mass():g} kg reported" if rig.report_mass else "no mass reported"
@@ -343,6 +380,10 @@ class SiteServer:
                 conn = refuser.next_client(self.stop.is_set)
                 if conn is None:
                     break
+                if closed_unheard(conn):  # a readiness probe (pendsweep wait): no session, the site goes on
+                    conn.close()
+                    refuser.busy.clear()
+                    continue
                 summary = serve_session(conn, rig, self.log, self.timeout, self.realtime)
                 refuser.busy.clear()
                 self.sessions.append(summary)
