@@ -7,8 +7,8 @@ compiled pass per run; tests compare the two on records with every outcome.
 import numpy as np
 
 from pendsweep.attractors import AMBIGUITY_FACTOR, Settling
-from pendsweep.classify import section_difference
 from pendsweep.kernels._layout import REC_ROTATIONS, REC_THETA_ABSMAX, REC_THETADOT_SEC, REC_Y_SEC
+from pendsweep.sections import section_difference
 
 _SEC = slice(REC_Y_SEC, REC_THETADOT_SEC + 1)
 

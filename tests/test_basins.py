@@ -31,11 +31,11 @@ from pendsweep.basins import (
     settle_runs,
     summarize,
 )
-from pendsweep.classify import section_difference, section_period
 from pendsweep.cli import main
 from pendsweep.errors import ConfigError
 from pendsweep.kernels import N_RECORD_COLUMNS
 from pendsweep.params import ModelParams
+from pendsweep.sections import section_difference, section_period
 
 DELTA = 0.25  # Duffing damping
 PERIOD = 2.0  # stroboscopic period [time units]
@@ -184,7 +184,7 @@ def test_default_sampling_is_multistarts():
 
 def test_vectorised_scales_are_the_classifiers():
     from pendsweep.attractors import section_scales_many
-    from pendsweep.classify import section_scales
+    from pendsweep.sections import section_scales
 
     p = ModelParams().replace(alpha=30.0, fe=2.5)
     rec = run_batch([p, p.replace(alpha=10.0)], np.array([[0, 0, 0.3, 0], [0, 0, 0.1, 0]]), 0, 30).records

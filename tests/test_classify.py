@@ -9,20 +9,17 @@ import pytest
 from pendsweep.backends import make_backend
 from pendsweep.classify import (
     EXTEND_PERIODS,
-    NOISE_MAX,
-    PERIODIC_TOL,
     Evidence,
     classify_records,
     classify_run,
     closed_curve,
     lyapunov_estimate,
-    section_period,
-    section_scales,
     two_trajectory_log_stretch,
 )
 from pendsweep.kernels._layout import RECORD_INDEX as REC
 from pendsweep.kernels._layout import SECTION_COLUMNS
 from pendsweep.params import FIG9_CO, FIG9_PO
+from pendsweep.sections import NOISE_MAX, PERIODIC_TOL, section_period, section_scales
 from pendsweep.status import Status
 from pendsweep.sweep import SweepConfig, run_sweep
 

@@ -6,8 +6,8 @@ forcing phase 0, columns ``y_sec .. thetadot_sec`` of
 periods to :data:`SETTLE_TOL` in every normalised component, and its
 per-period rotation count repeats exactly with the same ``n``, over the last
 :data:`SETTLE_WINDOW` periods. The comparison is
-:func:`pendsweep.classify.section_difference` (theta wrapped), normalised by
-:func:`pendsweep.classify.section_scales`, as in the motion classifier, so
+:func:`pendsweep.sections.section_difference` (theta wrapped), normalised by
+:func:`pendsweep.sections.section_scales`, as in the motion classifier, so
 a settled run and a ``periodic-n`` sweep point mean the same thing. A
 rotating orbit is a settled run whose ``n``-period cycle carries a net
 number of turns: its rotation number (turns per forcing period) is then
@@ -44,7 +44,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .classify import MAX_PERIOD, PERIODIC_TOL, Y_FLOOR, section_difference
 from .kernels._layout import (
     REC_THETADOT_SEC,
     REC_Y_ABSMAX,
@@ -52,6 +51,7 @@ from .kernels._layout import (
 )
 from .kernels._settle import settle_check
 from .params import ENCODER_RESOLUTION
+from .sections import MAX_PERIOD, PERIODIC_TOL, Y_FLOOR, section_difference
 
 #: Largest normalised section mismatch of a repeat [~rad]; the classifier's periodic tolerance.
 SETTLE_TOL = PERIODIC_TOL
@@ -124,7 +124,7 @@ def motion_label(at_rest: bool, period: int, turns: int) -> str:
 
 
 def section_scales_many(records: np.ndarray, omega_e, omega_p) -> np.ndarray:
-    """:func:`pendsweep.classify.section_scales` for many runs at once.
+    """:func:`pendsweep.sections.section_scales` for many runs at once.
 
     Parameters
     ----------
@@ -164,7 +164,7 @@ def settling(
         (NaN rows, e.g. after a divergence, never count as settled).
     scales : float64[k, 4] or float64[4]
         Section divisors ``(Y [m], w_e Y [m/s], 1, w_p [rad/s])``
-        (:func:`pendsweep.classify.section_scales`).
+        (:func:`pendsweep.sections.section_scales`).
     tol : float
         Largest normalised mismatch of a repeat [~rad].
     window : int
@@ -253,7 +253,7 @@ def cycle_distance(cycles: np.ndarray, reference: np.ndarray, scales: np.ndarray
     """Normalised distance of each cycle to ``reference``, minimised over cyclic shifts.
 
     ``cycles`` is ``(k, n, 4)``, ``reference`` ``(n, 4)``; the distance is the
-    largest component of :func:`~pendsweep.classify.section_difference` over
+    largest component of :func:`~pendsweep.sections.section_difference` over
     the cycle's points.
     """
     n = reference.shape[0]

@@ -37,8 +37,8 @@ backend must:
 9. Say whether its records carry measurement or process noise
    (``noisy``; default False). The classifier then measures each record's
    own noise and sets its periodicity tolerance from it
-   (:func:`pendsweep.classify.measured_noise`); a noise-free record must
-   repeat to :data:`pendsweep.classify.PERIODIC_TOL`.
+   (:func:`pendsweep.sections.measured_noise`); a noise-free record must
+   repeat to :data:`pendsweep.sections.PERIODIC_TOL`.
 
 :class:`BackendBase` supplies the defaults (a state whose first four
 entries are ``(y, ydot, theta, thetadot)``, the per-point fallback of

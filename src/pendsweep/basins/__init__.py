@@ -10,7 +10,7 @@ The engine is generic over a *stroboscopic map*: any object with
     the final states float64[k, d] and int64[k] kernel status codes.
 ``scales_for(ids, records) -> float64[k, 4]``
     Section divisors of runs ``ids`` from their records
-    (:func:`pendsweep.classify.section_scales`).
+    (:func:`pendsweep.sections.section_scales`).
 
 A one-degree-of-freedom system (the tests' Duffing oscillator) puts its
 coordinate and velocity in the ``theta`` columns and leaves the ``y``

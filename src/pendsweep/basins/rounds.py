@@ -11,11 +11,11 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 
 from ..attractors import MATCH_TOL, ROTATION_WINDOW, SETTLE_WINDOW, section_scales_many, settling
-from ..classify import MAX_PERIOD
 from ..kernels import N_RECORD_COLUMNS, STATUS_DIVERGED, STATUS_OK, STATUS_UNSTABLE
 from ..kernels._layout import REC_THETA_ABSMAX, REC_THETADOT_SEC, REC_Y_SEC
 from ..kernels._settle import carry_history, update_near_since
 from ..params import ModelParams
+from ..sections import MAX_PERIOD
 from ..status import Status
 
 if TYPE_CHECKING:  # pandas (0.3 s) is imported by the functions that build frames, not by importing this module

@@ -17,9 +17,9 @@ from ..attractors import (
     SETTLE_TOL,
     SETTLE_WINDOW,
 )
-from ..classify import MAX_PERIOD
 from ..errors import ConfigError
 from ..params import ModelParams
+from ..sections import MAX_PERIOD
 from ..status import Status
 
 if TYPE_CHECKING:  # pandas (0.3 s) is imported by the functions that build frames, not by importing this module

@@ -262,7 +262,7 @@ def read_json(path: Path) -> dict[str, Any]:
 
 
 #: Repeat tolerance of the normalised recorded sections (the classifier's normalisation,
-#: :func:`pendsweep.classify.section_scales`) for a sweep point to count as a start orbit: ten times
+#: :func:`pendsweep.sections.section_scales`) for a sweep point to count as a start orbit: ten times
 #: the classifier's ``PERIODIC_TOL`` - only a Newton start, which need not be exact.
 START_REPEAT_TOL = 1e-2
 
@@ -277,12 +277,12 @@ def section_period(sections: np.ndarray, y_absmax: float, params: ModelParams) -
     ``sections`` is ``(periods, 4)`` [m, m/s, rad, rad/s]; ``y_absmax`` the
     record's largest |y| [m]. The sections are normalised as the classifier
     normalises them (``y/Y, ydot/(w_e Y), theta, thetadot/w_p``, theta
-    wrapped; :func:`pendsweep.classify.section_scales`) and compared with
-    :func:`pendsweep.classify.section_period` to :data:`START_REPEAT_TOL`,
+    wrapped; :func:`pendsweep.sections.section_scales`) and compared with
+    :func:`pendsweep.sections.section_period` to :data:`START_REPEAT_TOL`,
     so every point the sweep labels ``periodic-n`` qualifies (with a period
     of at most ``n``). Rotating orbits qualify (the section is wrapped).
     """
-    from ..classify import section_period as classify_period
+    from ..sections import section_period as classify_period
 
     Y = y_absmax if math.isfinite(y_absmax) and y_absmax > 0 else 1.0
     scales = np.array([Y, params.omega_e * Y, 1.0, params.omega_p])

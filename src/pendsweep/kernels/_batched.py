@@ -76,7 +76,7 @@ class Lanes(NamedTuple):
         lie in the same chunk at a smaller index and share ``steps``.
     scales : float64[4, n]
         Divisors making a twin's section separation dimensionless
-        (``pendsweep.classify.section_scales``).
+        (``pendsweep.sections.section_scales``).
     d0 : float
         Twin separation after each renormalisation [normalised].
     rest : float
