@@ -8,9 +8,11 @@ the pendulum on its platform (M2, C2), served by `pendsweep site`. The
 integrator is AlphaOS, non-iterative, because an experimental element cannot
 revert a step.
 
-Run it (the site first, in another terminal or in the background):
+Run it (the site first, in another terminal or in the background; OpenSees
+connects once, so wait until the site listens, about 2 s after it starts):
 
     pendsweep site --port 8090 --once -o site-log.parquet &
+    pendsweep wait tcp://127.0.0.1:8090
     LD_LIBRARY_PATH=$(python -c "import importlib.util as u; print(u.find_spec('openseespylinux').submodule_search_locations[0] + '/lib')") \\
         python examples/opensees_pendulum_site.py --port 8090
 

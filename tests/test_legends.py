@@ -1,14 +1,23 @@
-"""Figures show their data: no legend box covers a data point, on any figure a command draws (issue 24).
+"""Figures show their data readably, on any figure a command draws (issues 24 and 31).
 
-Every figure a command saves is inspected just before it is written: for
-each legend, the data drawn in the figure (line vertices, scatter points,
-image pixels) is transformed to display coordinates and none may fall inside
-the legend's box. Reference lines of two points (axhline, axvline) are not data.
+Every figure a command saves is inspected just before it is written:
+
+* no legend box covers a data point: the data drawn in the figure (line
+  vertices, scatter points, image pixels) is transformed to display
+  coordinates and none may fall inside a legend's box (reference lines of two
+  points, axhline and axvline, are not data);
+* no two tick labels of an axis run into each other: their boxes keep
+  :data:`TICK_GAP` pixels apart (``-0.015-0.010`` read as one number);
+* a title over a frequency axis names only frequencies that axis shows (a
+  PSD titled with a peak at 486.8 Hz over an axis that stops at 20 Hz).
 """
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
+import pandas as pd
 import pytest
 from click.testing import CliRunner
 from matplotlib.figure import Figure
@@ -66,14 +75,62 @@ def covered(fig: Figure) -> list[str]:
     return found
 
 
+#: Least gap [px] between two tick labels of one axis: about a space at the default size, 120 dpi.
+TICK_GAP = 6.0
+
+
+def crowded_tick_labels(fig: Figure) -> list[str]:
+    """Pairs of shown tick labels (major or minor) of one axis of ``fig`` closer than :data:`TICK_GAP`."""
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    found = []
+    for ax in fig.axes:
+        if not ax.get_visible() or not ax.axison:
+            continue
+        box = ax.get_window_extent(renderer)
+        for name, axis, low, high in (("x", ax.xaxis, "x0", "x1"), ("y", ax.yaxis, "y0", "y1")):
+            shown = []
+            for label in axis.get_majorticklabels() + axis.get_minorticklabels():
+                if not label.get_visible() or not label.get_text():
+                    continue
+                extent = label.get_window_extent(renderer)
+                centre = 0.5 * (getattr(extent, low) + getattr(extent, high))
+                # labels of ticks beyond the view exist but are not drawn
+                if getattr(box, low) - 1 <= centre <= getattr(box, high) + 1:
+                    shown.append((extent.padded(TICK_GAP / 2), label.get_text()))
+            for i, (first, first_text) in enumerate(shown):
+                for second, second_text in shown[i + 1 :]:
+                    if first.overlaps(second):
+                        found.append(f"{ax.get_title()!r}: {name} tick labels {first_text!r} and {second_text!r} touch")
+    return found
+
+
+#: A frequency named in a title: "486.8 Hz", "20 Hz" (of "0-20 Hz").
+FREQUENCY = re.compile(r"(\d+(?:\.\d+)?)\s*Hz")
+
+
+def frequencies_off_axis(fig: Figure) -> list[str]:
+    """Frequencies named in the title of a frequency axis of ``fig`` that lie outside its shown range."""
+    found = []
+    for ax in fig.axes:
+        if "frequency" not in ax.get_xlabel() and "[Hz]" not in ax.get_xlabel():
+            continue
+        low, high = sorted(ax.get_xlim())
+        for named in FREQUENCY.findall(ax.get_title()):
+            if not low * (1 - 1e-9) <= float(named) <= high * (1 + 1e-9):
+                found.append(f"{ax.get_title()!r} names {named} Hz; its axis shows {low:g} to {high:g} Hz")
+    return found
+
+
 @pytest.fixture
 def inspected(monkeypatch):
-    """Every figure saved while the fixture is active, with the legends that cover its data."""
+    """Every figure saved while the fixture is active, with what makes it hard to read (legends over data,
+    crowded tick labels, frequencies named off the axis)."""
     seen: list[tuple[str, list[str]]] = []
     original = Figure.savefig
 
     def savefig(self, fname, *args, **kwargs):
-        seen.append((str(fname), covered(self)))
+        seen.append((str(fname), covered(self) + crowded_tick_labels(self) + frequencies_off_axis(self)))
         return original(self, fname, *args, **kwargs)
 
     monkeypatch.setattr(Figure, "savefig", savefig)
@@ -102,7 +159,7 @@ COMMANDS = {
 
 
 @pytest.mark.parametrize("name", list(COMMANDS))
-def test_no_legend_covers_data(name, inspected, tmp_path, monkeypatch):
+def test_figures_are_readable(name, inspected, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     args = COMMANDS[name]
     inputs = {  # the files a command reads, made first
@@ -135,3 +192,67 @@ def test_the_check_sees_a_legend_over_data():
     assert covered(fig)
     ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1))
     assert not covered(fig)
+
+
+def test_the_check_sees_crowded_tick_labels():
+    """The tick check is evidence only if it fails on labels in metres that run into each other."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    fig = Figure(figsize=(3, 3), dpi=120)
+    FigureCanvasAgg(fig)
+    ax = fig.subplots()
+    ax.plot([-0.02, 0.02], [-0.02, 0.02])
+    ax.set_xticks(np.arange(-0.02, 0.021, 0.005))
+    assert crowded_tick_labels(fig)
+    ax.plot([-20, 20], [-20, 20])  # the same in mm, on round ticks
+    ax.set_xticks([-20, -10, 0, 10, 20])
+    ax.set_yticks([-20, -10, 0, 10, 20])
+    assert not crowded_tick_labels(fig)
+
+
+def test_the_check_sees_a_frequency_off_the_axis():
+    """The title check is evidence only if it fails on the peak of issue 31 over a 0-20 Hz axis."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    fig = Figure()
+    FigureCanvasAgg(fig)
+    ax = fig.subplots()
+    ax.set(xlabel="frequency [Hz]", title="error PSD (peak 486.80 Hz)", xlim=(0, 20))
+    assert frequencies_off_axis(fig)
+    ax.set_title("error PSD: peak 2.20 Hz (+63 dB) in 0-20 Hz (shaded)")
+    assert not frequencies_off_axis(fig)
+
+
+def test_the_sync_figure_of_a_site_log_names_what_it_shows(inspected, tmp_path, monkeypatch):
+    """A site's log (issue 31): motion at 2.2 Hz, LVDT noise and a tone at 486.8 Hz in the error.
+
+    The report's in-band peak is the motion's, the tone is reported apart, and
+    the figure's PSD title names the frequencies the report prints, on an axis
+    that shows them; tick labels keep apart.
+    """
+    from pendsweep.figures.hybrid import draw_sync
+    from pendsweep.sync import analyse
+
+    dt = 1.0 / 1001.0
+    t = np.arange(20_000) * dt
+    y = 0.018 * np.sin(2 * np.pi * 2.2 * t)
+    noise = np.random.default_rng(0).normal(0.0, 2e-5, t.size)
+    x = 0.998 * y + noise + 5e-6 * np.sin(2 * np.pi * 486.8 * t)
+    report = analyse(pd.DataFrame({"t": t, "y": y, "x_meas": x}))
+    assert abs(report.peak.frequency - 2.2) < 0.11 and report.peak.level_db > 20
+    assert abs(report.high_peak.frequency - 486.8) < 0.11
+    titles: list[str] = []
+    inspect_and_save = Figure.savefig
+
+    def keep_titles(self, fname, *args, **kwargs):
+        titles.extend(ax.get_title() for ax in self.axes)
+        return inspect_and_save(self, fname, *args, **kwargs)
+
+    monkeypatch.setattr(Figure, "savefig", keep_titles)
+    draw_sync(pd.DataFrame({"t": t, "y": y, "x_meas": x}), report, tmp_path / "sync.png")
+    ((_, found),) = inspected
+    assert not found, found
+    (psd_title,) = [title for title in titles if "PSD" in title]
+    printed = {f"{float(v):.1f}" for line in report.lines() if "PSD" in line for v in FREQUENCY.findall(line)}
+    drawn = {f"{float(v):.1f}" for v in FREQUENCY.findall(psd_title)}
+    assert {"2.2", "486.8"} <= printed & drawn, (printed, drawn)

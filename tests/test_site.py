@@ -476,17 +476,6 @@ def test_remote_rig_refusals_exit_2(args, expect, tmp_path):
     assert expect in done.stderr and len(done.stderr.strip().splitlines()) == 1
 
 
-def test_an_unreachable_rig_fails_with_status_1(tmp_path):
-    with socket.socket() as s:  # a port nobody listens on
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
-    cmd = [sys.executable, "-m", "pendsweep.cli", "alpha", "--from", "4", "--to", "4", "--mode", "fresh",
-           "--backend", "substructured", "-B", f"rig=tcp://127.0.0.1:{port}", "-o", str(tmp_path / "x.parquet")]  # fmt: skip
-    done = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
-    assert done.returncode == 1, done.stderr
-    assert "cannot reach the rig" in done.stderr
-
-
 # -- the command -------------------------------------------------------------------------------
 @pytest.mark.parametrize(
     ("args", "expect"),

@@ -10,7 +10,16 @@ from click.testing import CliRunner
 from pendsweep.cli import main
 from pendsweep.errors import ConfigError
 from pendsweep.hybrid import read_trace
-from pendsweep.sync import analyse, error_psd, online_delay, sync_ratio, tracking_indices, xcorr_delay
+from pendsweep.sync import (
+    DYNAMICS_BAND,
+    analyse,
+    error_psd,
+    online_delay,
+    psd_peak,
+    sync_ratio,
+    tracking_indices,
+    xcorr_delay,
+)
 
 DT = 1e-3
 W = 2 * np.pi * 2.2
@@ -52,6 +61,17 @@ def test_error_psd_peaks_at_the_error_frequency():
     assert xcorr_delay(y, x, DT) > 0  # x lags
 
 
+def test_psd_peaks_tell_a_tone_in_the_band_from_noise_above_it():
+    t = np.arange(20_000) * DT
+    error = 1e-4 * np.sin(W * t) + np.random.default_rng(1).normal(0.0, 2e-5, t.size)
+    f, pxx = error_psd(error, DT)
+    tone = psd_peak(f, pxx, 0.0, DYNAMICS_BAND)
+    noise = psd_peak(f, pxx, DYNAMICS_BAND, f[-1])
+    assert tone.frequency == pytest.approx(2.2, abs=0.1) and tone.level_db > 30
+    assert DYNAMICS_BAND < noise.frequency <= f[-1] and noise.level_db < 10  # white noise: no tone stands out
+    assert psd_peak(f, pxx, f[-1], f[-1] + 1.0) is None  # nothing above Nyquist
+
+
 def test_bad_signals_are_config_errors():
     with pytest.raises(ConfigError):
         sync_ratio([1.0, 2.0, 3.0], [1.0, 2.0])
@@ -78,6 +98,8 @@ def test_trace_and_sync_commands(tmp_path):
     assert list(delays.columns) == ["t", "delay"] and len(delays) > 10
     report = analyse(df)
     assert f"{report.ratio:.2f} %" in res.output
+    assert "error PSD peak       2.200 Hz in 0-20 Hz" in res.output  # the delay's tone, at the forcing frequency
+    assert "error PSD HF peak" in res.output
 
 
 @pytest.mark.parametrize(

@@ -18,6 +18,7 @@ from . import (
     _stability,  # noqa: F401,E402  (registers margin)
     _substructured,  # noqa: F401,E402  (registers trace and sync)
     _sweep,  # noqa: F401,E402  (registers the sweep commands)
+    _wait,  # noqa: F401,E402  (registers wait)
 )
 from ._app import main
 

@@ -3,6 +3,9 @@
 All substructured runs use the backend's defaults (servo with about 18 ms of
 total delay, paper-level noise, first-order 5-point prediction with
 ``tau_hat`` = the total delay) from the rest state ``(0, 0, 0.1, 0)``.
+
+Lengths and delays are drawn in the unit that suits them (mm, um, ms): tick
+labels of ``0.005 m`` steps would run into each other.
 """
 
 from __future__ import annotations
@@ -12,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from matplotlib.ticker import MaxNLocator
 
 from ..backends import make_backend
 from ..hybrid import run_trace
@@ -19,11 +23,39 @@ from ..params import FIG9_CO, FIG9_PO, ModelParams
 from ..plotting import draw_bifurcation, new_figure
 from ..sweep import run_sweep, sweep_metadata
 from ..sweepfile import SWEEPS_DIR, load_sweep
-from ..sync import TABLE_I, SyncReport, error_psd, sync_ratio
+from ..sync import DYNAMICS_BAND, TABLE_I, SyncReport, error_psd, sync_ratio
 from .registry import figure
 
 INITIAL = (0.0, 0.0, 0.1, 0.0)
 CASES = {"PO": FIG9_PO, "CO": FIG9_CO}
+#: Display units of an SI quantity: (factor applied to the SI value, prefix), the largest unit first.
+PREFIXES = ((1.0, ""), (1e3, "m"), (1e6, "\u00b5"))
+
+
+def display_unit(values, si: str) -> tuple[float, str]:
+    """The largest unit (``si``, milli, micro) in which the largest ``|values|`` is at least 0.1: (factor, name).
+
+    A platform moving 18 mm reads 5, 10, 15 mm; an error of 0.7 mm stays in
+    mm, one of 85 um reads in um; a delay of 0.47 ms in ms.
+    """
+    largest = float(np.nanmax(np.abs(np.asarray(values, dtype=float)), initial=0.0))
+    for factor, prefix in PREFIXES:
+        if largest * factor >= 0.1:
+            return factor, prefix + si
+    factor, prefix = PREFIXES[-1]
+    return factor, prefix + si
+
+
+def _draw_subspace(ax, y_star: pd.Series, x: pd.Series) -> None:
+    """Measured ``x`` against target ``y*`` with the sync subspace ``x = y*``, both in one unit, square."""
+    scale, unit = display_unit(y_star, "m")
+    lim = 1.05 * scale * y_star.abs().max()
+    ax.plot(scale * y_star, scale * x, "k-", lw=0.6)
+    ax.plot([-lim, lim], [-lim, lim], "r--", lw=0.8, label="x = y* (sync subspace)")
+    ax.set(xlabel=f"target y* [{unit}]", ylabel=f"measured x [{unit}]")
+    ax.set_aspect("equal")
+    for axis in (ax.xaxis, ax.yaxis):  # a square panel: few ticks, on round steps
+        axis.set_major_locator(MaxNLocator(nbins=5, steps=[1, 2, 5, 10]))
 
 
 def _periods(params: ModelParams, seconds: float) -> int:
@@ -47,12 +79,13 @@ def fig9_hybrid(outdir: Path, quick: bool) -> list[Path]:
     for col, (label, params) in enumerate(CASES.items()):
         sub, emu = hybrid_pair(params, quick)
         ax_y, ax_t = axes[0, col], axes[1, col]
-        ax_y.plot(sub["t"], sub["y"], "k-", lw=1.0, label="substructured y*")
-        ax_y.plot(emu["t"], emu["y"], "r--", lw=1.0, label="emulated y")
+        scale, unit = display_unit(emu["y"], "m")
+        ax_y.plot(sub["t"], scale * sub["y"], "k-", lw=1.0, label="substructured y*")
+        ax_y.plot(emu["t"], scale * emu["y"], "r--", lw=1.0, label="emulated y")
         ax_t.plot(sub["t"], sub["theta"], "k-", lw=1.0, label=r"substructured $\theta_x$")
         ax_t.plot(emu["t"], emu["theta"], "r--", lw=1.0, label=r"emulated $\theta$")
         ax_y.set_title(f"({'ab'[col]}) {label}: alpha = {params.alpha:g} N, fe = {params.fe:g} Hz")
-        ax_y.set_ylabel("displacement [m]")
+        ax_y.set_ylabel(f"displacement [{unit}]")
         ax_t.set_ylabel("angle [rad]")
         ax_t.set_xlabel("time after the transient [s]")
     # one legend for the four panels, under them: the time series fill every panel
@@ -155,20 +188,24 @@ def fig12_sync(outdir: Path, quick: bool) -> list[Path]:
     grid = fig.add_gridspec(2, 3, height_ratios=[4, 1])
     ax_a, ax_b, ax_c = (fig.add_subplot(grid[0, i]) for i in range(3))
     po = traces["PO"]
-    lim = 1.05 * po["y"].abs().max()
-    ax_a.plot(po["y"], po["x_meas"], "k-", lw=0.6)
-    ax_a.plot([-lim, lim], [-lim, lim], "r--", lw=0.8, label="x = y* (sync subspace)")
-    ax_a.set(xlabel="target y* [m]", ylabel="measured x [m]", title="(a) PO synchronisation subspace")
-    ax_a.set_aspect("equal")
+    _draw_subspace(ax_a, po["y"], po["x_meas"])
+    ax_a.set_title("(a) PO synchronisation subspace")
     ax_a.legend(fontsize=7)
+    errors = {label: tr["y"] - tr["x_meas"] for label, tr in traces.items()}
+    scale, unit = display_unit(pd.concat(errors.values()), "m")
     for label, style in (("PO", "k-"), ("CO", "b-")):
-        tr = traces[label]
-        e = tr["y"] - tr["x_meas"]
-        ax_b.plot(tr["t"], e, style, lw=0.6, label=label)
+        tr, e = traces[label], errors[label]
+        ax_b.plot(tr["t"], scale * e, style, lw=0.6, label=label)
         f, pxx = error_psd(e.to_numpy(), float(tr["t"].iloc[1] - tr["t"].iloc[0]))
         ax_c.semilogy(f, pxx, style, lw=0.8, label=label)
-    ax_b.set(xlabel="time [s]", ylabel="y* - x [m]", title="(b) synchronisation error")
-    ax_c.set(xlabel="frequency [Hz]", ylabel="PSD [m$^2$/Hz]", title="(c) error PSD", xlim=(0, 20))
+    ax_b.set(xlabel="time [s]", ylabel=f"y* - x [{unit}]", title="(b) synchronisation error")
+    # the band of the dynamics, where the paper reads the error's predominant frequency (fe)
+    ax_c.set(
+        xlabel="frequency [Hz]",
+        ylabel="PSD [m$^2$/Hz]",
+        title=f"(c) error PSD (dotted: fe = {FIG9_PO.fe:g} Hz)",
+        xlim=(0, DYNAMICS_BAND),
+    )
     ax_c.axvline(FIG9_PO.fe, color="0.6", ls=":", lw=0.8)
     ax_b.legend(fontsize=7)
     ax_c.legend(fontsize=7)
@@ -186,36 +223,56 @@ def fig12_sync(outdir: Path, quick: bool) -> list[Path]:
 
 
 def draw_sync(trace: pd.DataFrame, report: SyncReport, path: Path) -> Path:
-    """Four panels of one trace: subspace, error, error PSD, online delay estimate."""
+    """Four panels of one trace: subspace, error, error PSD, online delay estimate.
+
+    The PSD is drawn over its whole band (log axes, 0 Hz left out), the band
+    of the dynamics shaded, and the peaks that ``report`` names (within that
+    band and above it) marked; the title names them as ``pendsweep sync``
+    prints them.
+    """
     fig = new_figure((10, 8), layout=None)
     axes = fig.subplots(2, 2)
     y, x = trace["y"], trace["x_meas"]
-    lim = 1.05 * y.abs().max()
-    axes[0, 0].plot(y, x, "k-", lw=0.6)
-    axes[0, 0].plot([-lim, lim], [-lim, lim], "r--", lw=0.8)
-    axes[0, 0].set(xlabel="target y* [m]", ylabel="measured x [m]", title=f"sync subspace (ratio {report.ratio:.2f} %)")
+    _draw_subspace(axes[0, 0], y, x)
+    axes[0, 0].set_title(f"sync subspace (ratio {report.ratio:.2f} %)")
     e = y - x
-    axes[0, 1].plot(trace["t"], e, "k-", lw=0.6)
+    scale, unit = display_unit(e, "m")
+    axes[0, 1].plot(trace["t"], scale * e, "k-", lw=0.4)
     axes[0, 1].set(
-        xlabel="time [s]", ylabel="y* - x [m]", title=f"J2 {report.indices.J2:.2f} %, J3 {report.indices.J3:.2f} %"
+        xlabel="time [s]",
+        ylabel=f"y* - x [{unit}]",
+        title=f"J2 {report.indices.J2:.2f} %, J3 {report.indices.J3:.2f} %",
     )
-    f, pxx = error_psd(e.to_numpy(), float(np.median(np.diff(trace["t"]))))
-    axes[1, 0].semilogy(f, pxx, "k-", lw=0.8)
-    axes[1, 0].set(
-        xlabel="frequency [Hz]",
-        ylabel="PSD [m$^2$/Hz]",
-        title=f"error PSD (peak {report.peak_frequency:.2f} Hz)",
-        xlim=(0, 20),
-    )
+    _draw_error_psd(axes[1, 0], e.to_numpy(), float(np.median(np.diff(trace["t"]))), report)
     od = report.delay_online
-    axes[1, 1].plot(od["t"], 1e3 * od["delay"], "k.-", ms=3)
+    scale, unit = display_unit(od["delay"], "s")
+    axes[1, 1].plot(od["t"], scale * od["delay"], "k.-", ms=3)
     axes[1, 1].set(
-        xlabel="time [s]", ylabel="delay [ms]", title=f"online delay estimate (J1 {1e3 * report.indices.J1:.2f} ms)"
+        xlabel="time [s]",
+        ylabel=f"delay [{unit}]",
+        title=f"online delay estimate (J1 {scale * report.indices.J1:.2f} {unit})",
     )
     fig.tight_layout()
     Path(path).parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120)
     return Path(path)
+
+
+def _draw_error_psd(ax, error: np.ndarray, dt: float, report: SyncReport) -> None:
+    """The error PSD on log axes from its first bin to Nyquist, the dynamics band shaded, the peaks marked."""
+    f, pxx = error_psd(error, dt)
+    f, pxx = f[1:], pxx[1:]  # 0 Hz is the mean, and has no place on a log axis
+    ax.loglog(f, pxx, "k-", lw=0.6)
+    peaks = [p for p in (report.peak, report.high_peak) if p is not None]
+    ax.axvspan(f[0], report.peak.high, color="0.92", lw=0)
+    for peak in peaks:  # a marker just above each peak, pointing down at it, whole even at Nyquist
+        ax.plot([peak.frequency], [1.5 * pxx[np.argmin(np.abs(f - peak.frequency))]], "rv", ms=6, clip_on=False)
+    low = report.peak
+    title = f"error PSD: peak {low.frequency:.2f} Hz (+{low.level_db:.0f} dB) in 0-{low.high:g} Hz (shaded)"
+    if report.high_peak is not None:
+        title += f"\nabove {low.high:g} Hz: {report.high_peak.frequency:.1f} Hz (+{report.high_peak.level_db:.0f} dB)"
+    ax.set(xlabel="frequency [Hz]", ylabel="PSD [m$^2$/Hz]", xlim=(f[0], f[-1]))
+    ax.set_title(title, fontsize=9)
 
 
 __all__ = ["draw_sync", "fig9_hybrid", "fig11_hybrid", "fig12_sync", "hybrid_pair", "table_i_rows"]

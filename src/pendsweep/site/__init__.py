@@ -8,6 +8,8 @@ OpenSees's ``genericClient`` element:
   system and sensors) to any client of the protocol;
 * :mod:`.client`: the substructured backend's ``-B rig=tcp://HOST:PORT``
   sends its commands to a remote site instead of its virtual rig;
+* :mod:`.connect`: ``tcp://HOST:PORT`` addresses and a connect that waits a
+  bounded time for a site still starting (also ``pendsweep wait``);
 * :mod:`.log`: the site's log, one row per committed step.
 
 The package itself exports only the protocol: the backends import

@@ -19,6 +19,10 @@ The protocol cannot put a specimen into a state, so a remote rig starts every
 run from the site's own initial state (a new connection each run): a run must
 start from a fresh state (ticks 0, platform at 0), which sweeps give in
 ``--mode fresh``; the pendulum's initial angle is the site's ``--theta0``.
+
+A site that is still starting (nothing listens yet) is tried again for up to
+:data:`~.connect.CONNECT_DEADLINE` seconds (10 s) before the run fails
+(:func:`~.connect.connect`), so a client may be started with its site.
 """
 
 from __future__ import annotations
@@ -28,7 +32,6 @@ import socket
 import struct
 import time
 from dataclasses import dataclass, field
-from urllib.parse import urlsplit
 
 import numpy as np
 
@@ -49,26 +52,16 @@ from ..kernels._substructured import (
     high_frequency_growth,
     stroke_status,
 )
+from .connect import connect, parse_rig_url
 from .protocol import Action, FrameReader, ProtocolError, Setup, send_all
 
 #: The set-up this client sends: ctrl disp, vel, accel, time; daq disp 2 (LVDT, encoder), vel 2, accel, force, time.
 CLIENT_SETUP = Setup((1, 1, 1, 0, 1), (2, 2, 1, 1, 1), 16)
-#: Seconds to wait for a connection and for each reply.
+#: Seconds to wait for each try of a connection and for each reply (a site still starting is
+#: retried for :data:`~.connect.CONNECT_DEADLINE` seconds).
 CONNECT_TIMEOUT = 10.0
 #: Largest magnitude of any daq value a rig may reply (SI units): beyond it the reply is garbage.
 REPLY_LIMIT = 1e6
-
-
-def parse_rig_url(url: str) -> tuple[str, int]:
-    """``tcp://HOST:PORT`` as ``(host, port)``; anything else is a :class:`ConfigError`."""
-    parts = urlsplit(url)
-    try:
-        port = parts.port
-    except ValueError:
-        port = None
-    if parts.scheme != "tcp" or not parts.hostname or port is None or parts.path not in ("", "/"):
-        raise ConfigError(f"rig = {url!r}; give tcp://HOST:PORT (e.g. tcp://127.0.0.1:8090) or leave it empty")
-    return parts.hostname, port
 
 
 @dataclass
@@ -88,10 +81,7 @@ class RemoteRig:
     round_trips: list[float] = field(default_factory=list)
 
     def __post_init__(self) -> None:
-        try:
-            self.sock = socket.create_connection((self.host, self.port), timeout=self.timeout)
-        except OSError as exc:
-            raise RunFailure(f"cannot reach the rig at tcp://{self.host}:{self.port}: {exc.strerror or exc}") from None
+        self.sock = connect(self.host, self.port, self.timeout)
         self.sock.settimeout(None)
         self.sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDTIMEO, struct.pack("ll", int(self.timeout), 0))
