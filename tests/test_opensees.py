@@ -65,3 +65,43 @@ def test_opensees_at_2_5_hz_brings_the_pendulum_to_rest(tmp_path):
     assert result["status"] == 0
     assert swings.max() < ENCODER_RESOLUTION  # below one encoder pulse: at rest
     assert emulated_swings(5.0, 2.5).max() < ENCODER_RESOLUTION
+
+
+def test_opensees_steps_alpha_inside_one_analysis_like_pendsweeps_own_client(tmp_path):
+    """examples/opensees_alpha_sweep.py: alpha stepped through one OpenSees analysis and one site session; the
+    site log turned into the sweep's rows agrees with pendsweep's own continuous client and the emulated system
+    (max |theta| within 2 %: AlphaOS against the client's RK4 for the numerical model)."""
+    import subprocess
+    import sys
+
+    from pendsweep.site.continuous import RigWatch
+    from pendsweep.site.opensees import EXAMPLE, opensees_env
+    from pendsweep.sweep import SweepConfig, run_sweep
+
+    quiet = ("--set", "fe=2.5", "-B", "force_noise=0", "-B", "lvdt_noise=0")
+    log = tmp_path / "site-log.parquet"
+    site = SiteProcess("--once", *quiet, "-o", str(log))
+    script = EXAMPLE.with_name("opensees_alpha_sweep.py")
+    done = subprocess.run(
+        [sys.executable, str(script), "--port", str(site.port), "--from", "28", "--to", "30", "--step", "2",
+         "--transient", "40", "--record", "4", "--log", str(log), "-o", str(tmp_path / "os.parquet"),
+         "--plot", str(tmp_path / "os.png")],
+        env=opensees_env(), capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    status, err = site.finish()
+    assert done.returncode == 0 and status == 0, done.stderr + err
+    assert err.count("left after 35200 steps") == 1  # both values in one session: 2 x 44 periods x 400 steps
+    opensees = pq.read_table(tmp_path / "os.parquet").to_pandas()
+    assert opensees.groupby("alpha").size().tolist() == [4, 4]
+    client_site = SiteProcess("--once", *quiet)
+    config = SweepConfig("alpha", (28.0, 30.0), {"fe": 2.5}, transient_periods=40, record_periods=4, kick=0.0,
+                         backend="substructured",
+                         backend_options={"actuator": "ideal", "rig": f"tcp://127.0.0.1:{client_site.port}"})  # fmt: skip
+    client = run_sweep(config, watch=RigWatch(reference=False, echo=lambda line: None))
+    assert client_site.finish()[0] == 0
+    emulated = pq.read_table(tmp_path / "os-emulated.parquet").to_pandas()
+    ours = opensees.groupby("alpha")["theta_absmax"].max().to_numpy()
+    assert ours.min() > 1.0  # the period-2 swing, not an agreement at rest
+    for other in (client, emulated):
+        np.testing.assert_allclose(ours, other.groupby("alpha")["theta_absmax"].max().to_numpy(), rtol=0.02)
+    assert (tmp_path / "os.png").stat().st_size > 10_000

@@ -21,7 +21,11 @@ Modes
 
 Directions ``up`` and ``down`` traverse the values in ascending and
 descending order; ``both`` runs the two branches (in parallel), which
-exposes hysteresis. Fresh and multistart points are independent, so their
+exposes hysteresis; ``loop`` runs up, then down from where the up branch
+ended, as one continuous experiment (a remote rig's ``both`` runs so, over
+one connection: :mod:`pendsweep.site.continuous`). ``ramp_periods`` moves
+the parameter linearly over that many periods at the start of every
+continue point instead of stepping it. Fresh and multistart points are independent, so their
 ``direction`` column is ``"none"`` and they run in parallel.
 """
 
@@ -38,9 +42,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pyarrow as pa
 
-from .backends import BACKENDS, make_backend
-from .classify import EVIDENCE_MODES, Motion, at_rest, classify_runs
-from .columns import to_numpy
+from .backends import BACKENDS, PointRun, make_backend
+from .classify import EVIDENCE_MODES, at_rest, classify_runs
 from .errors import ConfigError
 from .executors import Executor
 from .kernels._layout import REC_THETA_ABSMAX
@@ -48,7 +51,7 @@ from .params import ENCODER_RESOLUTION, PARAM_SPECS, ModelParams, check_value
 from .results import run_metadata
 from .scan import DEFAULT_MAX_WORK, Finished, UnitResult, Work, run_scan, sample_indices
 from .status import Status
-from .sweep_rows import PointResult, unit_key, unit_results
+from .sweep_rows import PointResult, classified_fields, resume_info, unit_key, unit_results
 
 if TYPE_CHECKING:  # rows are built as pyarrow columns; frames only at the API boundary
     import pandas as pd
@@ -57,8 +60,10 @@ MODES = ("continue", "fresh", "multistart")
 TRANSIENTS = ("fixed", "auto")
 #: Most values a sweep's range may hold (checked before the grid is built).
 MAX_VALUES = 1_000_000
-DIRECTIONS = ("up", "down", "both")
+DIRECTIONS = ("up", "down", "both", "loop")
 KEY_COLUMNS = ["direction", "point", "start"]
+#: Angle [rad] added to theta at a continue point whose pendulum is at rest (the paper's perturbation).
+KICK = 0.1
 
 
 def value_range(start: float, stop: float, step: float | None = None, points: int | None = None) -> np.ndarray:
@@ -141,6 +146,8 @@ class SweepConfig:
         Initial conditions per point (multistart mode).
     seed : int
         Seed of every random source (multistart draws, backend noise).
+    ramp_periods : int
+        Continue mode: periods at the start of each transient over which the parameter moves from its last value.
     """
 
     parameter: str
@@ -155,11 +162,12 @@ class SweepConfig:
     transient: str = "fixed"
     max_transient_periods: int = 1000
     initial: tuple[float, float, float, float] = (0.0, 0.0, 0.1, 0.0)
-    kick: float = 0.1
+    kick: float = KICK
     rest_threshold: float = ENCODER_RESOLUTION
     evidence: str = "staged"
     starts: int = 1
     seed: int = 0
+    ramp_periods: int = 0
 
     def __post_init__(self) -> None:
         if self.parameter not in PARAM_SPECS:
@@ -177,7 +185,8 @@ class SweepConfig:
             raise ConfigError(f"evidence = {self.evidence!r}; choose one of {', '.join(EVIDENCE_MODES)}")
         if self.transient not in TRANSIENTS:
             raise ConfigError(f"transient = {self.transient!r}; choose one of {', '.join(TRANSIENTS)}")
-        for name, lo in (("transient_periods", 0), ("record_periods", 1), ("starts", 1), ("max_transient_periods", 1)):
+        for name, lo in (("transient_periods", 0), ("record_periods", 1), ("starts", 1), ("max_transient_periods", 1),
+                         ("ramp_periods", 0)):  # fmt: skip
             v = getattr(self, name)
             if int(v) != v or v < lo:
                 raise ConfigError(f"{name} = {v!r} must be an integer >= {lo}")
@@ -187,6 +196,13 @@ class SweepConfig:
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 raise ConfigError(f"{name} = {v!r} rad must be a finite number >= 0")
+        if self.ramp_periods and self.mode != "continue":
+            raise ConfigError(f"ramp_periods = {self.ramp_periods} applies only to continue mode (mode is {self.mode})")
+        if self.transient == "fixed" and self.ramp_periods > self.transient_periods:
+            raise ConfigError(
+                f"ramp_periods = {self.ramp_periods} exceeds transient_periods = {self.transient_periods}: "
+                "the ramp is part of the transient"
+            )
         # Every value passed check_value, and ModelParams checks each field on its own,
         # so the model at every point is valid when the base model is.
         self.params_at(vals[0])
@@ -208,14 +224,22 @@ class SweepConfig:
         backend = make_backend(self.backend, **options)
         for v in (self.values[0], self.values[-1]):
             backend.validate(self.params_at(v))
-        if not backend.restartable:  # e.g. a remote rig: the protocol cannot put a specimen into a state
-            if self.mode != "fresh" or self.transient != "fixed":
-                raise ConfigError(
-                    f"{self.backend} with these options starts every point from its own initial state (a remote "
-                    "rig: the site's): "
-                    f"use --mode fresh with a fixed transient (got --mode {self.mode}, --transient {self.transient})"
-                )
+        if not backend.restartable:  # a remote rig: the protocol cannot put a specimen into a state
+            from .site.continuous import check_rig_sweep
+
+            check_rig_sweep(self, backend)
         return backend
+
+    def ramp_params(self, previous: float, value: float) -> list[ModelParams]:
+        """A ramp's first ``ramp_periods - 1`` periods' parameters: period k (1-based) runs k / ramp_periods of the
+        way from ``previous`` to ``value``, so the last one, and the rest of the transient, at ``value``."""
+        steps = self.ramp_periods
+        return [self.params_at(previous + (k / steps) * (value - previous)) for k in range(1, steps)]
+
+    def emulated_reference(self) -> SweepConfig:
+        """This sweep with the emulated system, a rig test's reference (its ``both`` one ``loop``, the usual kick)."""
+        direction = "loop" if self.direction == "both" else self.direction
+        return dataclasses.replace(self, backend="emulated", backend_options={}, direction=direction, kick=KICK)
 
     def branches(self) -> list[tuple[str, list[int]]]:
         """``(direction label, point indices in traversal order)`` per branch."""
@@ -223,9 +247,9 @@ class SweepConfig:
         if self.mode != "continue":
             return [("none", idx)]
         out = []
-        if self.direction in ("up", "both"):
+        if self.direction in ("up", "both", "loop"):
             out.append(("up", idx))
-        if self.direction in ("down", "both"):
+        if self.direction in ("down", "both", "loop"):
             out.append(("down", idx[::-1]))
         return out
 
@@ -236,6 +260,8 @@ class SweepConfig:
 
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
+        if not self.ramp_periods:  # the paper's step: files written before ramps existed keep their hash
+            del d["ramp_periods"]
         d["values"] = list(self.values)
         d["initial"] = list(self.initial)
         d["model"] = self.base_params.to_dict()  # fully resolved
@@ -270,23 +296,25 @@ def multistart_initials(config: SweepConfig, point: int) -> np.ndarray:
     return out
 
 
-def run_units(config: SweepConfig, backend, params: list, states: np.ndarray, threads=None, one_by_one=False):
+def run_units(
+    config: SweepConfig, backend, params: list, states: np.ndarray, threads=None, one_by_one=False, ramped: int = 0
+):
     """Transient and record of units: ``(runs, settled, transient periods used)``.
 
     ``one_by_one`` runs each unit with the backend's ``run_point`` (continue
-    mode's scalar path) instead of ``run_points``. With ``transient =
+    mode's scalar path) instead of ``run_points``. ``ramped``: periods of a
+    ramp already run, counted in a fixed transient and in those used. With ``transient =
     "auto"`` every unit is integrated in rounds until it settles (see
     :class:`SweepConfig`), on the batched kernel when the backend has one,
     then its record is taken from there.
     """
     n = len(params)
     if config.transient == "fixed":
+        transient = config.transient_periods - ramped
         if one_by_one:
-            runs = [
-                backend.run_point(q, x, config.transient_periods, config.record_periods) for q, x in zip(params, states)
-            ]
+            runs = [backend.run_point(q, x, transient, config.record_periods) for q, x in zip(params, states)]
         else:
-            runs = backend.run_points(params, states, config.transient_periods, config.record_periods, threads)
+            runs = backend.run_points(params, states, transient, config.record_periods, threads)
         return runs, np.zeros(n, dtype=bool), np.full(n, config.transient_periods)
     from .basins import BackendMap, EmulatedMap, settle_runs  # only adaptive transients need it
 
@@ -303,19 +331,7 @@ def run_units(config: SweepConfig, backend, params: list, states: np.ndarray, th
         runs = [backend.run_point(q, x, 0, config.record_periods) for q, x in zip(params, settled.states)]
     else:
         runs = backend.run_points(params, settled.states, 0, config.record_periods, threads)
-    return runs, settled.settled, settled.periods_done
-
-
-def _classified_fields(motion: Motion, backend) -> dict:
-    """The :class:`PointResult` fields a classification fills: the label and, on a noisy backend, its noise."""
-    if not backend.noisy:
-        return {"motion": motion.label}
-    noise = motion.noise
-    return {
-        "motion": motion.label,
-        "section_noise": math.nan if noise is None else noise.largest_jitter,
-        "periodic_tol": math.nan if noise is None else noise.applied_tolerance,
-    }
+    return runs, settled.settled, settled.periods_done + ramped
 
 
 def _classified(config, backend, pending: list[tuple[PointResult, ModelParams]]) -> Iterator[UnitResult]:
@@ -323,7 +339,7 @@ def _classified(config, backend, pending: list[tuple[PointResult, ModelParams]])
     motions = classify_runs(
         backend, [q for _, q in pending], [r.run for r, _ in pending], config.rest_threshold, config.evidence
     )
-    labelled = [dataclasses.replace(r, **_classified_fields(m, backend)) for (r, _), m in zip(pending, motions)]
+    labelled = [dataclasses.replace(r, **classified_fields(m, backend)) for (r, _), m in zip(pending, motions)]
     yield from unit_results(labelled, config.parameter, config.transient == "auto")
 
 
@@ -334,35 +350,59 @@ def _classified(config, backend, pending: list[tuple[PointResult, ModelParams]])
 CLASSIFY_GROUP = 16
 
 
-def _continue_branch(config, backend, direction, indices, resume) -> Iterator[UnitResult]:
-    """Walk one branch, carrying the state; ``resume`` describes finished units."""
+def _ramp(backend, params: list[ModelParams], state: np.ndarray) -> tuple[np.ndarray, PointRun | None]:
+    """Run the ramp's periods, one each; returns the state after them, or the failed run where one failed."""
+    for q in params:
+        run = backend.run_point(q, state, 1, 0)
+        if run.status is not Status.OK:
+            return state, run
+        state = run.state
+    return state, None
+
+
+def _continue_branches(config, backend, branches, resume) -> Iterator[UnitResult]:
+    """Walk branches one after another, carrying the state (a ``loop``'s down branch starts where up ended).
+
+    ``branches`` is a list of ``(direction, point indices)``; ``resume``
+    describes finished units.
+    """
     state = None  # None: start (or restart) from config.initial
     kick_next = False
+    previous: float | None = None  # the last point's value (a ramp starts there)
     pending: list[tuple[PointResult, ModelParams]] = []
-    for i in indices:
-        key = unit_key(direction, i, 0)
-        if key in resume:
-            info = resume[key]
-            state = np.asarray(info["state"], dtype=np.float64) if info["ok"] else None
-            kick_next = info["at_rest"]
-            continue
-        params = config.params_at(config.values[i])
-        kicked = False
-        if state is None:
-            state = backend.initial_state(params, *config.initial)
-        elif kick_next:
-            state = backend.kick(state, config.kick)
-            kicked = True
-        (run,), settled, used = run_units(config, backend, [params], np.array([state]), one_by_one=True)
-        pending.append(
-            (PointResult(direction, i, 0, config.values[i], run, kicked, "", bool(settled[0]), int(used[0])), params)
-        )
-        if len(pending) == CLASSIFY_GROUP:
-            yield from _classified(config, backend, pending)
-            pending = []
-        ok = run.status is Status.OK
-        state = run.state if ok else None
-        kick_next = ok and at_rest(run.records[:, REC_THETA_ABSMAX], config.rest_threshold)
+    for direction, indices in branches:
+        for i in indices:
+            key = unit_key(direction, i, 0)
+            if key in resume:
+                info = resume[key]
+                state = np.asarray(info["state"], dtype=np.float64) if info["ok"] else None
+                kick_next = info["at_rest"]
+                previous = config.values[i] if info["ok"] else None
+                continue
+            params = config.params_at(config.values[i])
+            kicked = False
+            if state is None:
+                state = backend.initial_state(params, *config.initial)
+            elif kick_next:
+                state = backend.kick(state, config.kick)
+                kicked = True
+            ramp = config.ramp_params(previous, config.values[i]) if previous is not None else []
+            state, failed = _ramp(backend, ramp, state)
+            if failed is None:
+                (run,), settled, used = run_units(
+                    config, backend, [params], np.array([state]), one_by_one=True, ramped=len(ramp)
+                )
+            else:
+                run, settled, used = failed, [False], [len(ramp)]
+            result = PointResult(direction, i, 0, config.values[i], run, kicked, "", bool(settled[0]), int(used[0]))
+            pending.append((result, params))
+            if len(pending) == CLASSIFY_GROUP:
+                yield from _classified(config, backend, pending)
+                pending = []
+            ok = run.status is Status.OK
+            state = run.state if ok else None
+            previous = config.values[i] if ok else None
+            kick_next = ok and at_rest(run.records[:, REC_THETA_ABSMAX], config.rest_threshold)
     yield from _classified(config, backend, pending)
 
 
@@ -388,7 +428,7 @@ def _independent_units(config, backend, units, threads) -> list[UnitResult]:
                 False,
                 settled=bool(ok),
                 transient_used=int(n),
-                **_classified_fields(motion, backend),
+                **classified_fields(motion, backend),
             )
             for (i, s), run, motion, ok, n in zip(units, runs, motions, settled, used)
         ],
@@ -445,13 +485,21 @@ class SweepScan:
 
     config: SweepConfig
     task_points: int = 256
+    #: A remote rig's continuous test: what it reports as it runs (:class:`pendsweep.site.continuous.RigWatch`).
+    watch: Any = None
+    #: The results file (a rig's time series goes beside it).
+    output: Path | None = None
     row_columns: list[str] = field(default_factory=lambda: KEY_COLUMNS + ["period"])
-    #: A resume reads back each finished unit's status and swing (:func:`_resume_info`).
+    #: A resume reads back each finished unit's status and swing (:func:`~pendsweep.sweep_rows.resume_info`).
     resume_columns: list[str] = field(default_factory=lambda: ["status", "theta_absmax"])
 
     def __post_init__(self) -> None:
         self.backend = self.config.make_backend()
         self.desc = self.config.parameter
+        if not self.backend.restartable and self.config.mode == "continue":
+            from .site.continuous import default_watch
+
+            self.watch = default_watch(self.watch, self.output)
 
     def metadata(self) -> dict[str, Any]:
         return sweep_metadata(self.config)
@@ -468,11 +516,14 @@ class SweepScan:
             n_jobs = 1  # its specimen serves one controller at a time
         if config.mode != "continue":
             return _independent_tasks(config, self.backend, finished.keys, n_jobs, self.task_points)
-        resume = _resume_info(finished.rows, finished.states, config.rest_threshold)
-        return [
-            functools.partial(_continue_branch, config, self.backend, direction, indices, resume)
-            for direction, indices in config.branches()
-        ], n_jobs
+        resume = resume_info(finished.rows, finished.states, config.rest_threshold)
+        if not self.backend.restartable:  # a remote rig: the whole test through one connection
+            from .site.continuous import rig_test
+
+            emulated = run_sweep(config.emulated_reference(), as_frame=False) if self.watch.reference else None
+            return [functools.partial(rig_test, config, self.backend, resume, self.watch, finished.rows, emulated)], 1
+        walks = [config.branches()] if config.direction == "loop" else [[branch] for branch in config.branches()]
+        return [functools.partial(_continue_branches, config, self.backend, walk, resume) for walk in walks], n_jobs
 
     def order(self, df: pd.DataFrame) -> pd.DataFrame:
         return df.sort_values(self.row_columns, kind="stable").reset_index(drop=True)
@@ -490,6 +541,7 @@ def run_sweep(
     max_work: float | None = DEFAULT_MAX_WORK,
     as_frame: bool = True,
     checkpoint_seconds: float = 1.0,
+    watch: Any = None,
 ) -> pd.DataFrame | pa.Table:
     """Run (or resume) a sweep and return its long-form results.
 
@@ -520,6 +572,11 @@ def run_sweep(
         With ``output``: a finished unit (a point, or a continue branch's
         point) is written to the parts directory at most this many seconds
         after it finishes (0: at once); a killed sweep resumes from there.
+    watch : RigWatch, optional
+        A remote rig's continuous test (continue mode): where its time
+        series goes, its live plot, its safe stop and its per-point lines
+        (:class:`pendsweep.site.continuous.RigWatch`; default: the time
+        series beside ``output``, lines on stderr).
 
     Returns
     -------
@@ -527,8 +584,9 @@ def run_sweep(
         One row per (direction, point, start, period), sorted; columns are
         documented in the README.
     """
+    scan = SweepScan(config, task_points, watch=watch, output=output)
     return run_scan(
-        SweepScan(config, task_points),
+        scan,
         output,
         n_jobs=n_jobs,
         progress=progress,
@@ -536,26 +594,5 @@ def run_sweep(
         executor=executor,
         max_work=max_work,
         as_frame=as_frame,
-        checkpoint_seconds=checkpoint_seconds,
+        checkpoint_seconds=checkpoint_seconds if scan.backend.restartable else 0.0,  # a rig test's points: at once
     )
-
-
-def _resume_info(done_rows: pa.Table, states: dict[str, list[float]], threshold: float) -> dict[str, dict]:
-    """Per finished unit: its final state, whether it ended OK and at rest."""
-    if not done_rows.num_rows:
-        return {}
-    rows: dict[str, list[int]] = {}  # unit key -> its rows, in table order
-    columns = zip(done_rows["direction"].to_pylist(), to_numpy(done_rows["point"]), to_numpy(done_rows["start"]))
-    for row, (d, p, s) in enumerate(columns):
-        rows.setdefault(unit_key(d, p, s), []).append(row)
-    ok_rows = np.array([status == "ok" for status in done_rows["status"].to_pylist()])
-    swings = to_numpy(done_rows["theta_absmax"])
-    info = {}
-    for key, index in rows.items():
-        ok = bool(ok_rows[index].all())
-        info[key] = {
-            "state": states.get(key),
-            "ok": ok and states.get(key) is not None,
-            "at_rest": ok and at_rest(swings[index], threshold),
-        }
-    return info

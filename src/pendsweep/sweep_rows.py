@@ -7,6 +7,7 @@ scan engine (:class:`pendsweep.scan.UnitResult`) one slice per unit.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -14,7 +15,8 @@ import numpy as np
 import pyarrow as pa
 
 from .backends import PointRun
-from .columns import repeated_each, table
+from .classify import Motion, at_rest
+from .columns import repeated_each, table, to_numpy
 from .kernels import RECORD_COLUMNS
 from .kernels._layout import RECORD_INDEX
 from .scan import UnitResult
@@ -42,6 +44,10 @@ class PointResult:
     #: [normalised, ~rad] (:class:`pendsweep.classify.SectionNoise`; NaN where not measured). None: noise-free.
     section_noise: float | None = None
     periodic_tol: float | None = None
+    #: A remote rig's continuous test: whether the point began a new session after a resume (None: not a rig test).
+    restarted: bool | None = None
+    #: A rig's continuous test: replies that came more than a step after their simulated time (None: not a rig test).
+    late_ticks: int | None = None
 
     @property
     def key(self) -> str:
@@ -53,7 +59,8 @@ def result_rows(results: list[PointResult], parameter: str, adaptive: bool) -> p
 
     ``parameter`` names the swept value's column; ``adaptive`` (``--transient
     auto``) adds the columns ``settled`` and ``transient_periods_used``; units
-    of a noisy backend add ``section_noise`` and ``periodic_tol``.
+    of a noisy backend add ``section_noise`` and ``periodic_tol``, those of a
+    rig's continuous test ``restarted`` and ``late_ticks``.
     Built from whole columns for all the units at once: a dense sweep's
     task holds hundreds of units, and a table each cost more than their
     classification (:func:`unit_results` slices this one instead).
@@ -85,6 +92,9 @@ def result_rows(results: list[PointResult], parameter: str, adaptive: bool) -> p
     if results and results[0].section_noise is not None:  # a noisy backend: what the classifier measured
         columns["section_noise"] = per_row([r.section_noise for r in results], np.float64)
         columns["periodic_tol"] = per_row([r.periodic_tol for r in results], np.float64)
+    if results and results[0].restarted is not None:  # a rig's continuous test: where the branch broke
+        columns["restarted"] = per_row([r.restarted for r in results], np.bool_)
+        columns["late_ticks"] = per_row([r.late_ticks for r in results], np.int64)
     if adaptive:
         columns["settled"] = per_row([r.settled for r in results], np.bool_)
         columns["transient_periods_used"] = per_row([r.transient_used for r in results], np.int64)
@@ -100,3 +110,36 @@ def unit_results(results: list[PointResult], parameter: str, adaptive: bool) -> 
         units.append(UnitResult(r.key, rows.slice(offset, n), r.run.state.tolist()))
         offset += n
     return units
+
+
+def classified_fields(motion: Motion, backend) -> dict:
+    """The :class:`PointResult` fields a classification fills: the label and, on a noisy backend, its noise."""
+    if not backend.noisy:
+        return {"motion": motion.label}
+    noise = motion.noise
+    return {
+        "motion": motion.label,
+        "section_noise": math.nan if noise is None else noise.largest_jitter,
+        "periodic_tol": math.nan if noise is None else noise.applied_tolerance,
+    }
+
+
+def resume_info(done_rows: pa.Table, states: dict[str, list[float]], threshold: float) -> dict[str, dict]:
+    """Per finished unit: its final state, whether it ended OK and at rest."""
+    if not done_rows.num_rows:
+        return {}
+    rows: dict[str, list[int]] = {}  # unit key -> its rows, in table order
+    columns = zip(done_rows["direction"].to_pylist(), to_numpy(done_rows["point"]), to_numpy(done_rows["start"]))
+    for row, (d, p, s) in enumerate(columns):
+        rows.setdefault(unit_key(d, p, s), []).append(row)
+    ok_rows = np.array([status == "ok" for status in done_rows["status"].to_pylist()])
+    swings = to_numpy(done_rows["theta_absmax"])
+    info = {}
+    for key, index in rows.items():
+        ok = bool(ok_rows[index].all())
+        info[key] = {
+            "state": states.get(key),
+            "ok": ok and states.get(key) is not None,
+            "at_rest": ok and at_rest(swings[index], threshold),
+        }
+    return info

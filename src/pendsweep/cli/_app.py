@@ -48,6 +48,10 @@ class _Group(click.Group):
         except click.UsageError as exc:
             raise UsageFailure(exc.format_message()) from None
         except PendsweepError as exc:
+            if exc.exit_code not in (1, 2):  # e.g. a rig test stopped by SIGINT: the shell's 130
+                failure = click.ClickException(str(exc))
+                failure.exit_code = exc.exit_code
+                raise failure from None
             cls = RuntimeFailure if exc.exit_code == 1 else UsageFailure
             raise cls(str(exc)) from None
         except OSError as exc:  # a disk filling up or a file vanishing mid-run: not the command line's fault

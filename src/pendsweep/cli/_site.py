@@ -56,13 +56,21 @@ TIMEOUT_S = FiniteFloat(1e-3, 3600.0, "s")
 )
 @click.option("--realtime", is_flag=True, help="Pace each step to the wall clock and count deadline misses.")
 @click.option(
+    "--nudge",
+    type=FiniteFloat(0.0, 1.0, "rad"),
+    default=0.1,
+    show_default=True,
+    help="Angle [rad] (0 to 1) by which SIGUSR1 nudges the pendulum, the operator's hand (the paper's 0.1 rad "
+    "perturbation; a client cannot give it through the protocol).",
+)
+@click.option(
     "--timeout",
     type=TIMEOUT_S,
     default=10.0,
     show_default=True,
     help="A client silent for longer [s] is a fault (0.001 to 3600).",
 )
-def site_command(port, host, allow, once, output, theta0, thetadot0, sets, rig_opts, realtime, timeout):
+def site_command(port, host, allow, once, output, theta0, thetadot0, sets, rig_opts, realtime, nudge, timeout):
     """Serve the pendulum on its platform as an OpenFresco experimental site.
 
     Any client of OpenFresco's TCP protocol drives it: OpenSees's genericClient
@@ -120,7 +128,12 @@ def site_command(port, host, allow, once, output, theta0, thetadot0, sets, rig_o
     def stop(signum, frame):
         raise KeyboardInterrupt
 
+    def nudged(signum, frame):
+        rig.request_nudge(nudge)
+        click.echo(f"pendsweep site: the pendulum is nudged by {nudge:g} rad (SIGUSR1)", err=True)
+
     signal.signal(signal.SIGTERM, stop)
+    signal.signal(signal.SIGUSR1, nudged)
     try:
         status = server.serve()
     except KeyboardInterrupt:

@@ -61,11 +61,15 @@ def execute(
     default_output: bool = False,
     work_limit: float | None = None,
     checkpoint_seconds: float = 1.0,
+    stop_periods: int = 5,
 ) -> None:
     """Run a sweep (on ``executor``), print a summary, optionally plot.
 
     ``default_output`` marks an output path the user did not choose: finished
-    results of another configuration there are replaced (with a note).
+    results of another configuration there are replaced (with a note). A
+    remote rig's continuous test (continue mode) keeps its time series beside
+    ``output``, redraws ``plot_path`` after every point and ramps down over
+    ``stop_periods`` on a safe stop (:mod:`pendsweep.site.continuous`).
     """
     from ..executors import make_executor
     from ..sweep import run_sweep, sweep_metadata
@@ -80,9 +84,17 @@ def execute(
     if output.exists() and not overwrite:
         click.echo(f"{output} exists: reusing it if its configuration matches (--overwrite recomputes)")
     t0 = time.perf_counter()
+    rig_test = bool(config.backend_options.get("rig")) and config.mode == "continue"
+    watch = None
+    if rig_test:
+        from ..site.continuous import RigWatch, default_watch
+
+        watch = default_watch(RigWatch(plot=plot_path, stop_periods=stop_periods), output)
+        progress = False  # one line per point instead of a bar
     runner = make_executor(executor, scheduler)
     try:
-        rows = run_sweep(
+        rows = _run_sweep_stopping_safely(
+            run_sweep,
             config,
             output,
             n_jobs=jobs,
@@ -92,15 +104,30 @@ def execute(
             max_work=work_limit,
             as_frame=False,
             checkpoint_seconds=checkpoint_seconds,
+            watch=watch,
         )
     finally:
         runner.close()
     elapsed = time.perf_counter() - t0
     click.echo(f"{unit_summary(rows)} in {elapsed:.2f} s -> {output}")
-    if plot_path is not None:
+    if watch is not None and watch.timeseries is not None:
+        click.echo(f"time series -> {watch.timeseries}")
+    if plot_path is not None and watch is not None:
+        click.echo(f"plot -> {plot_path} (redrawn after every point)")
+    elif plot_path is not None:
         from ..plotting import plot_files
 
         click.echo(f"plot -> {plot_files([output], plot_path, title=title)}")
+
+
+def _run_sweep_stopping_safely(run_sweep, *args, **kwargs):
+    """``run_sweep``, with a rig test's safe stop told that its finished points are kept for a resume."""
+    from ..site.session import RigStopped
+
+    try:
+        return run_sweep(*args, **kwargs)
+    except RigStopped as exc:
+        raise RigStopped(f"{exc}; finished points are kept: the same command resumes", exc.exit_code) from None
 
 
 def unit_summary(rows) -> str:
@@ -121,7 +148,8 @@ def unit_summary(rows) -> str:
 def _run_options(kw: dict[str, Any]) -> dict[str, Any]:
     return dict(jobs=kw["jobs"], overwrite=kw["overwrite"], progress=kw["progress"], plot_path=kw["plot_path"],
                 executor=kw["executor"], scheduler=kw["scheduler"], default_output=kw["output"] is None,
-                work_limit=max_work(kw["max_work"], kw["yes"]), checkpoint_seconds=kw["checkpoint_seconds"])  # fmt: skip
+                work_limit=max_work(kw["max_work"], kw["yes"]), checkpoint_seconds=kw["checkpoint_seconds"],
+                stop_periods=kw["stop_periods"])  # fmt: skip
 
 
 def _sweep_command(name: str, parameter: str, default_step: float, help_text: str):

@@ -191,6 +191,23 @@ def sweep_options(default_step: float, unit: str):
                 help="Angle [rad] added when the pendulum is at rest (continue mode only), 0 to pi.",
             ),
             click.option(
+                "--ramp",
+                "ramp_periods",
+                type=click.IntRange(0, PERIODS.max),
+                default=0,
+                show_default=True,
+                help="Continue mode: move the parameter linearly over this many forcing periods at the start of "
+                "each point's transient instead of stepping it (0: the paper's step).",
+            ),
+            click.option(
+                "--stop-periods",
+                type=click.IntRange(1, 1000),
+                default=5,
+                show_default=True,
+                help="A remote rig's continuous test: forcing periods over which a safe stop (a signal, a limit, "
+                "an unstable loop) ramps the forcing to zero before die.",
+            ),
+            click.option(
                 "--rest-threshold",
                 type=SMALL_ANGLE,
                 default=0.0013,
@@ -260,9 +277,9 @@ def refuse_inapplicable(ctx: click.Context, kw: dict[str, Any]) -> None:
     mode = kw["mode"]
     if mode != "multistart" and given(ctx, "starts"):
         raise ConfigError(f"--starts {kw['starts']} applies only to --mode multistart (mode is {mode})")
-    for name in ("direction", "kick"):
+    for name, flag in (("direction", "direction"), ("kick", "kick"), ("ramp_periods", "ramp")):
         if mode != "continue" and given(ctx, name):
-            raise ConfigError(f"--{name} {kw[name]} applies only to --mode continue (mode is {mode})")
+            raise ConfigError(f"--{flag} {kw[name]} applies only to --mode continue (mode is {mode})")
     if kw["transient"] == "auto" and given(ctx, "transient_periods"):
         raise ConfigError(f"--transient-periods {kw['transient_periods']} applies only to --transient fixed")
     if kw["transient"] == "fixed" and given(ctx, "max_transient_periods"):
@@ -329,11 +346,19 @@ def build_config(parameter: str, default_step: float, kw: dict[str, Any], ctx: c
         transient_periods=kw["transient_periods"],
         record_periods=kw["record_periods"],
         initial=(0.0, 0.0, kw["theta0"], kw["thetadot0"]),
-        kick=kw["kick"],
+        kick=_kick(kw, backend_options, ctx),
         rest_threshold=kw["rest_threshold"],
         evidence=kw["evidence"],
         starts=kw["starts"] if kw["mode"] == "multistart" else 1,
         seed=kw["seed"],
         transient=kw["transient"],
         max_transient_periods=kw["max_transient_periods"],
+        ramp_periods=kw["ramp_periods"],
     )
+
+
+def _kick(kw: dict[str, Any], backend_options: dict[str, Any], ctx: click.Context | None) -> float:
+    """The kick [rad]: 0 on a remote rig unless given (its pendulum cannot be kicked from the client; then refused)."""
+    if backend_options.get("rig") and kw["mode"] == "continue" and not (ctx is not None and given(ctx, "kick")):
+        return 0.0
+    return kw["kick"]

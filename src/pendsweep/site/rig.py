@@ -25,7 +25,7 @@ import numpy as np
 from ..backends.substructured import SubstructuredBackend
 from ..errors import ConfigError
 from ..kernels._site import N_READINGS, READING_NAMES, rig_reading, rig_trial
-from ..kernels._substructured import S_X
+from ..kernels._substructured import S_THETA, S_X
 from ..params import ModelParams
 from .protocol import ProtocolError
 
@@ -108,11 +108,13 @@ class SiteRig:
         self._p = params.kernel_array()
         self._pend = (params.m, params.l, params.b1, params.b2, params.b3, params.g)
         self._blocks: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        self.nudges_pending = 0.0  # the operator's hand, applied before the next step (:meth:`request_nudge`)
         self.reset()
 
     # -- state ------------------------------------------------------------------------
     def reset(self) -> None:
-        """The rig at its initial state, time 0, step not yet known."""
+        """The rig at its initial state, time 0, step not yet known (no nudge applied yet)."""
+        self.nudged: list[tuple[float, float]] = []  # (time [s], angle [rad]) of each nudge applied
         self.dt: float | None = None
         self.first_step: float | None = None
         self._configure(self.backend.dt)
@@ -177,7 +179,22 @@ class SiteRig:
         except ConfigError as exc:  # options that no step of this client can serve
             raise ProtocolError(f"the rig cannot run this client's step: {exc}") from None
 
+    def request_nudge(self, angle: float) -> None:
+        """The operator nudges the pendulum by ``angle`` [rad] before the next step (safe from a signal handler).
+
+        The pivot moves vertically, so the hanging pendulum is an invariant of
+        the rig, and its Coulomb friction keeps it at rest against small
+        disturbances well past the stability boundary: in the paper's lab "the
+        transition is instigated by perturbing the pendulum by theta = 0.1 rad"
+        (Fig. 8), by hand. A client cannot do that through the protocol.
+        """
+        self.nudges_pending += angle
+
     def _trial(self, d: float, v: float, a: float, t: float | None) -> np.ndarray:
+        if self.nudges_pending:  # between two steps, as a hand would: the committed state moves
+            angle, self.nudges_pending = self.nudges_pending, 0.0
+            self.committed[S_THETA] += angle
+            self.nudged.append((self.committed_time, angle))
         for name, value in (("displacement", d), ("velocity", v), ("acceleration", a)):
             if not math.isfinite(value):
                 raise ProtocolError(f"trial {name} {value!r} is not finite")

@@ -1,0 +1,104 @@
+"""Fig. 11(a) through a site, up and back down in one continuous test, against the in-process substructured sweep.
+
+The physics check of the continuous rig test (docs/hybrid-testing.md): a
+`pendsweep site` serving the Table IV rig (servo actuator, noisy sensors),
+pendsweep's client sweeping alpha 0 -> 45 -> 0 N (0.5 N steps, 100 + 20
+periods at 2.5 Hz) through one connection, and an operator who nudges the
+pendulum by 0.1 rad (SIGUSR1 to the site) whenever the client asks, as the
+in-process sweep kicks it. Then the in-process substructured continue sweep
+of the same loop (``--direction loop``, kick 0.1 rad) and the emulated one.
+
+Writes, under --out (default results/rig-check): rig.parquet (+ its time
+series), local.parquet, fig11a_rig.png (the three diagrams) and
+comparison.csv (per point: labels and theta_max of each), and prints the
+agreement. Takes about 2 x 73 minutes of test time at the site's pace (20 to
+40 minutes of wall time on a 2-core machine).
+
+    python scripts/rig-fig11a-check.py [--out DIR] [--step 0.5] [--quick]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, default=Path("results/rig-check"))
+    parser.add_argument("--step", type=float, default=0.5, help="alpha step [N]")
+    parser.add_argument("--quick", action="store_true", help="20 + 10 periods per point, 1 N steps")
+    args = parser.parse_args()
+    step, transient, record = (1.0, 20, 10) if args.quick else (args.step, 100, 20)
+    args.out.mkdir(parents=True, exist_ok=True)
+    python = sys.executable
+    site = subprocess.Popen(
+        [python, "-m", "pendsweep.cli", "site", "--port", "0", "--once", "--set", "fe=2.5", "-B", "actuator=servo",
+         "-o", str(args.out / "site-log.parquet")],
+        stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    port = None
+    for line in site.stderr:
+        if found := re.search(r"listening on [\d.]+:(\d+)", line):
+            port = int(found.group(1))
+            break
+    sweep = ["--from", "0", "--to", "45", "--step", str(step), "--fe", "2.5", "--transient-periods", str(transient),
+             "--record-periods", str(record), "--backend", "substructured"]  # fmt: skip
+    client = subprocess.Popen(
+        [python, "-m", "pendsweep.cli", "alpha", *sweep, "--direction", "both", "-B", f"rig=tcp://127.0.0.1:{port}",
+         "-o", str(args.out / "rig.parquet"), "--overwrite"],
+        stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    nudges = 0
+    for line in client.stderr:
+        print(line, end="", flush=True)
+        if "nudge it" in line:  # the operator's hand
+            os.kill(site.pid, signal.SIGUSR1)
+            nudges += 1
+    if client.wait() != 0:
+        sys.exit("the rig test failed")
+    site.wait(timeout=60)
+    subprocess.run([python, "-m", "pendsweep.cli", "alpha", *sweep, "--direction", "loop", "--no-progress",
+                    "-o", str(args.out / "local.parquet"), "--overwrite"], check=True)  # fmt: skip
+    subprocess.run([python, "-m", "pendsweep.cli", "alpha", *sweep[:-2], "--direction", "loop", "--no-progress",
+                    "-o", str(args.out / "emulated.parquet"), "--overwrite"], check=True)  # fmt: skip
+    compare(args.out, nudges)
+
+
+def compare(out: Path, nudges: int) -> None:
+    import pandas as pd
+
+    from pendsweep.plotting import plot_files
+
+    per_point = {}
+    for name in ("rig", "local", "emulated"):
+        rows = pd.read_parquet(out / f"{name}.parquet")
+        per_point[name] = rows.groupby(["direction", "alpha"]).agg(
+            motion=("motion", "first"), theta_max=("theta_absmax", "max")
+        )
+    table = pd.concat(per_point, axis=1)
+    table.columns = [f"{a}_{b}" for a, b in table.columns]
+    table.to_csv(out / "comparison.csv")
+
+    def family(label: str) -> str:
+        return "periodic" if label.startswith("periodic") else label
+
+    same = (table["rig_motion"].map(family) == table["local_motion"].map(family)).mean()
+    close = ((table["rig_theta_max"] - table["local_theta_max"]).abs() < 0.05).mean()
+    for direction in ("up", "down"):
+        branch = table.loc[direction]
+        moving = branch.index[branch["rig_theta_max"] > 0.05]
+        print(f"{direction}: rig swings from {moving.min() if len(moving) else 'nowhere'} N; in process from "
+              f"{branch.index[branch['local_theta_max'] > 0.05].min()} N")  # fmt: skip
+    print(f"{nudges} nudges; motion family agrees at {same:.0%} of points, theta_max within 0.05 rad at {close:.0%}")
+    plot_files([out / "rig.parquet", out / "local.parquet", out / "emulated.parquet"], out / "fig11a_rig.png",
+               title="Fig. 11(a): rig through one session (first), in process, emulated")  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()
