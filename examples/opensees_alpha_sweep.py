@@ -29,39 +29,22 @@ import argparse
 import time
 from pathlib import Path
 
-
-def steps_per_period(fe: float, dt: float = 1e-3) -> int:
-    """Whole steps per forcing period nearest to ``dt`` (as pendsweep does): 400 at 2.5 Hz."""
-    return max(1, round(1.0 / (fe * dt)))
+from opensees_pendulum_site import build_model, steps_per_period  # the same model, beside this script
 
 
 def sweep_alpha(port: int, values: list[float], fe: float, transient: int, record: int, steps: int,
-                M: float = 10.9, C: float = 20.0, K: float = 1910.0, M2: float = 0.9, C2: float = 10.0,
-                host: str = "127.0.0.1") -> tuple[int, float]:  # fmt: skip
+                host: str = "127.0.0.1", **model: float) -> tuple[int, float]:  # fmt: skip
     """One OpenSees analysis stepping alpha through ``values``; (analyze status, wall seconds).
 
-    Every value runs ``transient + record`` forcing periods of ``steps``
-    steps; its load pattern replaces the last one at a period boundary, where
-    the forcing's phase is 0, so the force is continuous across the step.
+    The model is examples/opensees_pendulum_site.py's. Every value runs
+    ``transient + record`` forcing periods of ``steps`` steps; its load
+    pattern replaces the last one at a period boundary, where the forcing's
+    phase is 0, so the force is continuous across the step.
     """
     import openseespy.opensees as ops
 
     dt = 1.0 / (fe * steps)
-    ops.wipe()
-    ops.model("basic", "-ndm", 1, "-ndf", 1)
-    ops.node(1, 0.0)
-    ops.node(2, 0.0, "-mass", M - M2)  # M1: the numerical part of the oscillator's mass
-    ops.fix(1, 1)
-    ops.uniaxialMaterial("Elastic", 1, K)
-    ops.uniaxialMaterial("Viscous", 2, C - C2, 1.0)  # C1 = C - C2; the platform's C2 is on the rig
-    ops.element("zeroLength", 1, 1, 2, "-mat", 1, 2, "-dir", 1, 1)
-    ops.element("genericClient", 2, "-node", 2, "-dof", 1, "-server", port, host)
-    ops.constraints("Plain")
-    ops.numberer("Plain")
-    ops.system("FullGeneral")
-    ops.algorithm("Linear")
-    ops.integrator("AlphaOS", 1.0)
-    ops.analysis("Transient")
+    build_model(ops, port, host=host, **model)
     start = time.perf_counter()
     status = 0
     for tag, alpha in enumerate(values, start=1):

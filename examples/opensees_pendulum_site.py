@@ -33,13 +33,12 @@ def steps_per_period(fe: float, dt: float = 1e-3) -> int:
     return max(1, round(1.0 / (fe * dt)))
 
 
-def build_and_run(port: int, alpha: float, fe: float, periods: int, steps_per_period: int,
-                  M: float = 10.9, C: float = 20.0, K: float = 1910.0, M2: float = 0.9, C2: float = 10.0,
-                  host: str = "127.0.0.1", alpha_os: float = 1.0) -> tuple[int, float]:  # fmt: skip
-    """Build the numerical substructure in OpenSees, run ``periods`` forcing periods; (status, wall seconds)."""
-    import openseespy.opensees as ops
+def build_model(ops, port: int, M: float = 10.9, C: float = 20.0, K: float = 1910.0, M2: float = 0.9,
+                C2: float = 10.0, host: str = "127.0.0.1", alpha_os: float = 1.0) -> None:  # fmt: skip
+    """The numerical substructure in OpenSees (``ops``), its genericClient at the site, the AlphaOS analysis.
 
-    dt = 1.0 / (fe * steps_per_period)
+    No load pattern yet: the caller adds the forcing (a Trig series at node 2).
+    """
     ops.wipe()
     ops.model("basic", "-ndm", 1, "-ndf", 1)
     ops.node(1, 0.0)
@@ -49,15 +48,24 @@ def build_and_run(port: int, alpha: float, fe: float, periods: int, steps_per_pe
     ops.uniaxialMaterial("Viscous", 2, C - C2, 1.0)  # C1 = C - C2; the platform's C2 is on the rig
     ops.element("zeroLength", 1, 1, 2, "-mat", 1, 2, "-dir", 1, 1)
     ops.element("genericClient", 2, "-node", 2, "-dof", 1, "-server", port, host)
-    ops.timeSeries("Trig", 1, 0.0, 1e6, 1.0 / fe, "-factor", alpha)
-    ops.pattern("Plain", 1, 1)
-    ops.load(2, 1.0)
     ops.constraints("Plain")
     ops.numberer("Plain")
     ops.system("FullGeneral")
     ops.algorithm("Linear")
     ops.integrator("AlphaOS", alpha_os)  # alpha = 1: no numerical damping; 2/3 to 1 accepted
     ops.analysis("Transient")
+
+
+def build_and_run(port: int, alpha: float, fe: float, periods: int, steps_per_period: int,
+                  host: str = "127.0.0.1", alpha_os: float = 1.0, **model: float) -> tuple[int, float]:  # fmt: skip
+    """Build the numerical substructure in OpenSees, run ``periods`` forcing periods; (status, wall seconds)."""
+    import openseespy.opensees as ops
+
+    dt = 1.0 / (fe * steps_per_period)
+    build_model(ops, port, host=host, alpha_os=alpha_os, **model)
+    ops.timeSeries("Trig", 1, 0.0, 1e6, 1.0 / fe, "-factor", alpha)
+    ops.pattern("Plain", 1, 1)
+    ops.load(2, 1.0)
     start = time.perf_counter()
     status = ops.analyze(periods * steps_per_period, dt)
     wall = time.perf_counter() - start

@@ -274,3 +274,23 @@ def test_a_realtime_site_paces_the_continuous_test(tmp_path):
     assert (rows["late_ticks"] >= 0).all() and rows["late_ticks"].max() < 400  # at most a period's worth late
     log = pq.read_table(tmp_path / "site-log.parquet", columns=["late"]).to_pandas()
     assert len(log) == 2 * 5 * 400 and "deadline misses" in err
+
+
+def test_the_operators_nudge_takes_a_resting_pendulum_off_the_semi_trivial_branch(tmp_path):
+    """A pendulum at rest stays at rest past the boundary (vertical pivot, Coulomb friction); where an in-process
+    sweep would kick, the test asks for a nudge, and a site takes the operator's SIGUSR1 as 0.1 rad."""
+    site = SiteProcess("--once", "--theta0", "0", *QUIET_SITE)
+    out = tmp_path / "rig.parquet"
+    client = run_cli(out, f"tcp://127.0.0.1:{site.port}", "--transient-periods", "40",
+                     values=("--from", "24", "--to", "25", "--step", "1"))  # fmt: skip
+    asked = 0
+    for line in client.stderr:
+        if "nudge it" in line:
+            asked += 1
+            os.kill(site.proc.pid, signal.SIGUSR1)
+    assert client.wait(timeout=120) == 0
+    status, err = site.finish()
+    assert status == 0 and "nudged by 0.1 rad" in err
+    assert asked == 1  # before the second point only: the first started at rest from the site's own state
+    swing = pq.read_table(out).to_pandas().groupby("alpha")["theta_absmax"].max()
+    assert swing[24.0] == 0.0 and swing[25.0] > 0.1

@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from .registry import benchmark
+from .site import start_site
 
 #: The rig of the Table IV test, served by the site (its sensors noisy, as a lab's).
 SITE_ARGS = ("--set", "fe=2.5", "-B", "actuator=servo")
@@ -90,16 +91,6 @@ class NullSite:
         self.listener.close()
 
 
-def _start_site(*args: str, once: bool = True) -> tuple[subprocess.Popen, int]:
-    cmd = [sys.executable, "-m", "pendsweep.cli", "site", "--port", "0", *(("--once",) if once else ()), *args]
-    proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)
-    for line in proc.stderr:
-        found = re.search(r"listening on [\d.]+:(\d+)", line)
-        if found:
-            return proc, int(found.group(1))
-    raise RuntimeError("pendsweep site did not start")
-
-
 def _config(values, transient: int, record: int, options: dict):
     from ..sweep import SweepConfig
 
@@ -122,7 +113,7 @@ def _resume_cost(tmp: Path) -> dict:
     """Kill a client after its second point, run it again; the steps the site served beyond the test's, in points."""
     values, transient, record = (16.0, 17.0, 18.0, 19.0), 10, 5
     out = tmp / "resume.parquet"
-    proc, port = _start_site(*SITE_ARGS, once=False)  # the killed client's session, then the resumed one
+    proc, port = start_site(*SITE_ARGS, once=False)  # the killed client's session, then the resumed one
     base = [sys.executable, "-m", "pendsweep.cli", "alpha", "--from", "16", "--to", "19", "--step", "1", "--fe",
             "2.5", "--transient-periods", str(transient), "--record-periods", str(record), "--backend",
             "substructured", "-B", f"rig=tcp://127.0.0.1:{port}", "-o", str(out)]  # fmt: skip
@@ -160,7 +151,7 @@ def bench_rig_sweep(quick: bool) -> dict:
     test_seconds = len(values) * (transient + record) / 2.5
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
-        proc, port = _start_site(*SITE_ARGS)
+        proc, port = start_site(*SITE_ARGS)
         site_wall, rows = _client_run(values, transient, record, port, tmp / "site.parquet")
         proc.communicate(timeout=120)
         null = NullSite()

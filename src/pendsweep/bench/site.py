@@ -25,8 +25,9 @@ GOAL_SECONDS = 14.0
 GOAL_P99_SERVICE = 2e-4
 
 
-def _start_site(*args: str) -> tuple[subprocess.Popen, int]:
-    cmd = [sys.executable, "-m", "pendsweep.cli", "site", "--port", "0", "--once", *args]
+def start_site(*args: str, once: bool = True) -> tuple[subprocess.Popen, int]:
+    """``pendsweep site`` on a free loopback port (one client with ``once``); (process, port)."""
+    cmd = [sys.executable, "-m", "pendsweep.cli", "site", "--port", "0", *(("--once",) if once else ()), *args]
     proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)
     for line in proc.stderr:
         found = re.search(r"listening on [\d.]+:(\d+)", line)
@@ -41,7 +42,7 @@ def _opensees_against_site(periods: int, *site_args: str) -> dict:
 
     with tempfile.TemporaryDirectory() as tmp:
         log = Path(tmp) / "log.parquet"
-        proc, port = _start_site("-o", str(log), "--set", f"fe={FE}", *site_args)
+        proc, port = start_site("-o", str(log), "--set", f"fe={FE}", *site_args)
         result = run_example(port, ALPHA, FE, periods)
         proc.communicate(timeout=120)
         table = read_parquet(log)
@@ -81,7 +82,7 @@ def _client_against_site(periods: int) -> dict:
     from ..params import ModelParams
 
     params = ModelParams.from_mapping({"alpha": ALPHA, "fe": FE})
-    proc, port = _start_site("--set", f"fe={FE}", "-B", "actuator=servo")
+    proc, port = start_site("--set", f"fe={FE}", "-B", "actuator=servo")
     remote = make_backend("substructured", rig=f"tcp://127.0.0.1:{port}")
     start = time.perf_counter()
     run = remote.run_point(params, remote.initial_state(params, 0, 0, 0.1, 0), periods - 1, 1)
