@@ -71,12 +71,15 @@ def main() -> None:
 
 
 def compare(out: Path, nudges: int) -> None:
+    """comparison.csv, the agreement lines and fig11a_rig.png (the three diagrams one above the other)."""
     import pandas as pd
 
-    from pendsweep.plotting import plot_files
+    from pendsweep.plotting import draw_bifurcation, new_figure
+    from pendsweep.results import read_results
 
+    names = {"rig": "through the site, one session", "local": "in process", "emulated": "emulated system"}
     per_point = {}
-    for name in ("rig", "local", "emulated"):
+    for name in names:
         rows = pd.read_parquet(out / f"{name}.parquet")
         per_point[name] = rows.groupby(["direction", "alpha"]).agg(
             motion=("motion", "first"), theta_max=("theta_absmax", "max")
@@ -90,14 +93,24 @@ def compare(out: Path, nudges: int) -> None:
 
     same = (table["rig_motion"].map(family) == table["local_motion"].map(family)).mean()
     close = ((table["rig_theta_max"] - table["local_theta_max"]).abs() < 0.05).mean()
+    print(f"{nudges} nudges; motion family agrees with in process at {same:.0%} of points, "
+          f"theta_max within 0.05 rad at {close:.0%}")  # fmt: skip
     for direction in ("up", "down"):
-        branch = table.loc[direction]
-        moving = branch.index[branch["rig_theta_max"] > 0.05]
-        print(f"{direction}: rig swings from {moving.min() if len(moving) else 'nowhere'} N; in process from "
-              f"{branch.index[branch['local_theta_max'] > 0.05].min()} N")  # fmt: skip
-    print(f"{nudges} nudges; motion family agrees at {same:.0%} of points, theta_max within 0.05 rad at {close:.0%}")
-    plot_files([out / "rig.parquet", out / "local.parquet", out / "emulated.parquet"], out / "fig11a_rig.png",
-               title="Fig. 11(a): rig through one session (first), in process, emulated")  # fmt: skip
+        branch = table.loc[direction].loc[10.0:]  # past the first point's own decay from the site's theta0
+        onsets = {name: branch.index[branch[f"{name}_theta_max"] > 0.3].min() for name in names}
+        periodic = {name: branch.index[branch[f"{name}_motion"].str.startswith("periodic")] for name in names}
+        print(
+            f"{direction}: swing > 0.3 rad from "
+            + ", ".join(f"{n} {v:g} N" for n, v in onsets.items())
+            + "; periodic from "
+            + ", ".join(f"{n} {v.min():g} N" for n, v in periodic.items() if len(v))
+        )
+    fig = new_figure((9, 10))
+    axes = fig.subplots(3, 1, sharex=True)
+    for ax, (name, title) in zip(axes, names.items()):
+        draw_bifurcation(ax, [read_results(out / f"{name}.parquet")])
+        ax.set_title(f"Fig. 11(a), 0 -> 45 -> 0 N: {title}", fontsize=9)
+    fig.savefig(out / "fig11a_rig.png", dpi=120, bbox_inches="tight")
 
 
 if __name__ == "__main__":
