@@ -312,9 +312,9 @@ def test_noisy_periodic_n_repeats_within_its_measured_noise(n):
 
 
 def test_noisy_records_that_do_not_repeat_are_left_to_the_evidence():
-    """Motions that are not periodic (a small torus, a converging spiral, chaos, a decaying swing that the
-    section hides) and a jitter larger than noise are not read as periodic; a period-4 orbit whose halves
-    differ by 20 jitters stays period 4."""
+    """Motions that are not periodic (small tori, a converging spiral, chaos, chaos in narrow bands, a decaying
+    swing that the section hides) and a jitter larger than noise are not read as periodic; a period-4 orbit
+    whose halves differ by 20 jitters stays period 4."""
     rng = np.random.default_rng(7)
     k = np.arange(RECORD)[:, None]
     golden = 2 * math.pi * (math.sqrt(5) - 1) / 2
@@ -333,6 +333,24 @@ def test_noisy_records_that_do_not_repeat_are_left_to_the_evidence():
     }.items():
         motion = classify_records(rec, UNIT, Status.OK, None, noisy=True)
         assert motion.label == "transient" and not motion.noise.repeats, (name, motion)
+    # The independent checker's cases: motions 20 to 60 times the jitter that 20 sections could take for noise.
+    small = np.tile([0.3, 0.2, 0.4, 0.1], (RECORD, 1))
+    for rho in (0.3, 0.45, 0.618):
+        torus = small.copy()
+        torus[:, 2:] += 0.01 * np.column_stack([np.cos(2 * np.pi * rho * k[:, 0]), np.sin(2 * np.pi * rho * k[:, 0])])
+        for seed in range(10):
+            assert classify_records(noisy_records(torus, 5e-4, seed), UNIT, Status.OK, None, noisy=True).label == (
+                "transient"
+            ), (rho, seed)
+    logistic = [0.3]
+    for _ in range(100 + RECORD):
+        logistic.append(3.9 * logistic[-1] * (1 - logistic[-1]))
+    banded = np.array([[0.3, 0.2, 0.4, 0.1], [-0.3, -0.2, -0.4, -0.1]])[np.arange(RECORD) % 2]
+    banded[:, 2] += 0.02 * (np.array(logistic[-RECORD:]) - 0.5)  # chaos in two bands 0.02 wide
+    for seed in range(10):
+        assert classify_records(noisy_records(banded, 5e-4, seed), UNIT, Status.OK, None, noisy=True).label == (
+            "transient"
+        )
     four = rng.uniform(-0.5, 0.5, size=(2, 4))[np.arange(RECORD) % 2]
     four[::4] += 0.02  # halves of the period-2 pattern 0.02 apart: a period-4 orbit
     for seed in range(5):
@@ -367,3 +385,14 @@ def test_noisy_substructured_sweep_reads_like_the_noise_free_loop():
     q = FIG9_PO.replace(alpha=30.0, fe=2.5)
     run = backend.run_point(q, backend.initial_state(q, 0.0, 0.0, 0.1, 0.0), 150, 20)
     assert section_period(run.records[:, SECTION_COLUMNS], section_scales(run.records, q)) == 0  # 1e-3 fails
+
+
+def test_transient_auto_settles_a_noisy_loop_within_its_noise():
+    """``--transient auto`` on the noisy substructured loop settles as the classifier judges (noisy tolerance),
+    instead of running every point to the cap; a point at rest shows no measured noise."""
+    config = SweepConfig(parameter="alpha", values=(5.0, 30.0), model={"fe": 2.5}, mode="fresh", transient="auto",
+                         max_transient_periods=400, backend="substructured")  # fmt: skip
+    rows = run_sweep(config).groupby("alpha").first()
+    assert rows.loc[30.0, "motion"] == "periodic-2" and rows.loc[30.0, "settled"]
+    assert rows.loc[30.0, "transient_periods_used"] < 400
+    assert rows.loc[5.0, "motion"] == "semi-trivial" and np.isnan(rows.loc[5.0, "section_noise"])

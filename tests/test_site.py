@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import socket
 import struct
 import subprocess
@@ -621,3 +622,20 @@ def test_realtime_paces_to_the_wall_clock():
     summary = site.server.sessions[-1]
     assert summary.steps == n
     assert math.isfinite(summary.quantile_us(0.5))
+
+
+@pytest.mark.skipif(not socket.has_ipv6, reason="this machine has no IPv6")
+def test_a_site_listens_on_the_ipv6_loopback():
+    """``--host ::1`` binds an IPv6 socket (the default allow-list admits ::1) and serves a client there."""
+    cmd = [sys.executable, "-m", "pendsweep.cli", "site", "--host", "::1", "--port", "0", "--once"]
+    proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)
+    try:
+        port = int(re.search(r"listening on ::1:(\d+)", proc.stderr.readline()).group(1))
+        client = RawClient(port, host="::1")
+        client.setup()
+        assert math.isfinite(client.step(0.0, 0.0, 0.001))
+        client.frame(99)
+        client.close()
+        assert proc.wait(timeout=60) == 0
+    finally:
+        proc.kill()

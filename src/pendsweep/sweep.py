@@ -316,7 +316,7 @@ def run_units(
         else:
             runs = backend.run_points(params, states, transient, config.record_periods, threads)
         return runs, np.zeros(n, dtype=bool), np.full(n, config.transient_periods)
-    from .basins import BackendMap, EmulatedMap, settle_runs  # only adaptive transients need it
+    from .basins import BackendMap, EmulatedMap, settle_runs, settle_tolerance  # only adaptive transients need it
 
     if backend.batched and not one_by_one:
         system = EmulatedMap(
@@ -326,7 +326,7 @@ def run_units(
     else:  # units of one call share their parameters (one point, or one point's starts)
         system = BackendMap(backend, params[0], entropy=(config.seed,), workers=1)
     settled = settle_runs(system, np.asarray(states, dtype=np.float64), config.max_transient_periods,
-                          rest_threshold=config.rest_threshold)  # fmt: skip
+                          rest_threshold=config.rest_threshold, tol=settle_tolerance(backend))  # fmt: skip
     if one_by_one:
         runs = [backend.run_point(q, x, 0, config.record_periods) for q, x in zip(params, settled.states)]
     else:

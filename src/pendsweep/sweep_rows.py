@@ -116,7 +116,8 @@ def classified_fields(motion: Motion, backend) -> dict:
     """The :class:`PointResult` fields a classification fills: the label and, on a noisy backend, its noise."""
     if not backend.noisy:
         return {"motion": motion.label}
-    noise = motion.noise
+    # at rest or not finished, the label rests on no repeat: no noise to show
+    noise = None if motion.label in ("semi-trivial", "n/a") else motion.noise
     return {
         "motion": motion.label,
         "section_noise": math.nan if noise is None else noise.largest_jitter,

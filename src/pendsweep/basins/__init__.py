@@ -40,6 +40,7 @@ from .rounds import (
     SettledRuns,
     StroboscopicMap,
     settle_runs,
+    settle_tolerance,
 )
 from .run import (
     ROW_COLUMNS,
@@ -79,6 +80,7 @@ __all__ = [
     "runs_from_frame",
     "scan_summary",
     "settle_runs",
+    "settle_tolerance",
     "settling_quantile",
     "summarize",
     "survival",

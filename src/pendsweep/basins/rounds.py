@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
-from ..attractors import MATCH_TOL, ROTATION_WINDOW, SETTLE_WINDOW, section_scales_many, settling
+from ..attractors import MATCH_TOL, ROTATION_WINDOW, SETTLE_TOL, SETTLE_WINDOW, section_scales_many, settling
 from ..kernels import N_RECORD_COLUMNS, STATUS_DIVERGED, STATUS_OK, STATUS_UNSTABLE
 from ..kernels._layout import REC_THETA_ABSMAX, REC_THETADOT_SEC, REC_Y_SEC
 from ..kernels._settle import carry_history, update_near_since
@@ -28,6 +28,13 @@ ROUND_PERIODS = 25
 CHUNK_STARTS = 4096
 #: Settling tolerance on backends with sensor noise and quantisation [normalised, ~rad]: about 8 encoder pulses.
 NOISY_SETTLE_TOL = 0.01
+
+
+def settle_tolerance(backend) -> float:
+    """The settling tolerance for ``backend``'s records: :data:`NOISY_SETTLE_TOL` where they carry noise."""
+    return NOISY_SETTLE_TOL if backend.noisy else SETTLE_TOL
+
+
 #: Escape rate: fewest settling events in the fitted tail.
 ESCAPE_MIN_EVENTS = 20
 

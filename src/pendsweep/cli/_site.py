@@ -138,7 +138,8 @@ def site_command(port, host, allow, once, output, theta0, thetadot0, sets, rig_o
         status = server.serve()
     except KeyboardInterrupt:
         cut = bool(server.sessions) and server.sessions[-1].interrupted
-        click.echo(f"pendsweep site: stopped by a signal{' mid-session' if cut else ''}; log written", err=True)
+        written = "; log written" if output is not None else ""
+        click.echo(f"pendsweep site: stopped by a signal{' mid-session' if cut else ''}{written}", err=True)
         status = 1 if cut else 0
     if status:
         raise SystemExit(status)

@@ -236,12 +236,13 @@ def _stopped_run(config, session: RigSession) -> PointRun:
 
 def _settle(config, session: RigSession, params, value, point) -> tuple[bool, int]:
     """Run until the record settles (the in-process rule, :func:`pendsweep.basins.settle_runs`) or the cap."""
-    from ..basins import settle_runs
+    from ..basins import settle_runs, settle_tolerance
 
     system = _SessionMap(session, params, value, point)
     settled = settle_runs(
-        system, session.state[None].copy(), config.max_transient_periods, rest_threshold=config.rest_threshold
-    )
+        system, session.state[None].copy(), config.max_transient_periods, rest_threshold=config.rest_threshold,
+        tol=settle_tolerance(session.backend),
+    )  # fmt: skip
     return bool(settled.settled[0]), int(settled.periods_done[0])
 
 

@@ -361,7 +361,9 @@ class SiteServer:
         # (One millisecond, a step inside the accepted range whatever -B dt says.)
         self.rig.trial(0.0, 0.0, 0.0, 1e-3)
         self.rig.reset()
-        self.listener = socket.create_server((self.host, self.port), reuse_port=False, backlog=4)
+        # the address's own family: an IPv6 host (::1, ::) needs an IPv6 socket, create_server's default is IPv4
+        family = socket.getaddrinfo(self.host, self.port, type=socket.SOCK_STREAM)[0][0]
+        self.listener = socket.create_server((self.host, self.port), family=family, reuse_port=False, backlog=4)
         self.address = self.listener.getsockname()[:2]
 
     def serve(self) -> int:
