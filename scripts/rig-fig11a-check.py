@@ -70,6 +70,23 @@ def main() -> None:
     compare(args.out, nudges)
 
 
+def relabel(unit):
+    """A rig unit's label from its records by the current classifier (noisy; no re-simulation)."""
+    import numpy as np
+
+    from pendsweep.classify import classify_records
+    from pendsweep.kernels import RECORD_COLUMNS
+    from pendsweep.params import ModelParams
+    from pendsweep.sections import section_scales
+    from pendsweep.status import Status
+
+    records = unit[list(RECORD_COLUMNS)].to_numpy(dtype=np.float64)
+    params = ModelParams.from_mapping({"fe": 2.5, "alpha": float(unit["alpha"].iloc[0])})
+    status = Status(unit["status"].iloc[0])
+    motion = classify_records(records, section_scales(records, params), status, None, noisy=True)
+    return unit["motion"].map(lambda _: motion.label)
+
+
 def compare(out: Path, nudges: int) -> None:
     """comparison.csv, the agreement lines and fig11a_rig.png (the three diagrams one above the other)."""
     import pandas as pd
@@ -81,6 +98,8 @@ def compare(out: Path, nudges: int) -> None:
     per_point = {}
     for name in names:
         rows = pd.read_parquet(out / f"{name}.parquet")
+        if name == "rig":  # labelled by the classifier of the day (a rig's records alone decide them)
+            rows["motion"] = rows.groupby(["direction", "point"], group_keys=False).apply(relabel)
         per_point[name] = rows.groupby(["direction", "alpha"]).agg(
             motion=("motion", "first"), theta_max=("theta_absmax", "max")
         )
