@@ -7,7 +7,7 @@ genericClient connection, the forcing amplitude alpha is stepped at forcing-
 period boundaries (the Trig series restarts its amplitude at phase 0), with
 `--transient` periods left to decay and `--record` periods recorded at every
 value, as the paper did. The site's log is then turned into the sweep's rows
-(`pendsweep.site.log.sweep_rows`: one row per recorded period, the motion
+(`pendsweep.site.log_rows.sweep_rows`: one row per recorded period, the motion
 class judged within the record's own noise), written as a sweep result that
 `pendsweep plot` reads, and drawn beside the emulated system's diagram and,
 with `--client ROWS.parquet`, pendsweep's own client's (`pendsweep alpha

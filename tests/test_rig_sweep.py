@@ -157,11 +157,43 @@ def test_sigint_mid_point_ramps_the_forcing_down_sends_die_and_exits_130(tmp_pat
     ramp = series[series["point"] < 0]  # the safe stop's periods
     period_ticks = 400
     assert len(ramp) >= 4 * period_ticks
-    peaks = [np.abs(ramp["Fe"].to_numpy()[k * period_ticks : (k + 1) * period_ticks]).max() for k in range(4)]
     alpha = 15.0 + len(finished)  # the point that was running
-    np.testing.assert_allclose(peaks, [alpha * 3 / 4, alpha / 2, alpha / 4, 0.0], atol=0.05)
+    force = ramp["Fe"].to_numpy()[: 4 * period_ticks]
+    envelope = alpha * (1.0 - np.arange(4 * period_ticks) / (4 * period_ticks))  # linear, tick by tick, to 0
+    assert np.all(np.abs(force) <= envelope + 1e-9)
+    peaks = [np.abs(force[k * period_ticks : (k + 1) * period_ticks]).max() for k in range(4)]
+    assert peaks[0] > 0.7 * alpha and np.all(np.diff(peaks) < 0)
     command = series["command"].to_numpy()
     assert np.abs(np.diff(command)).max() < 2e-3  # continuous: no jump in the command anywhere
+    # the same command again: a new session, the first one's time series kept
+    site = SiteProcess("--once", *QUIET_SITE)
+    rerun = run_cli(out, f"tcp://127.0.0.1:{site.port}", "--stop-periods", "4")
+    _, err = rerun.communicate(timeout=300)
+    assert rerun.returncode == 0 and site.finish()[0] == 0, err
+    again = pq.read_table(tmp_path / "rig-timeseries.parquet").to_pandas()
+    assert sorted(again["session"].unique()) == [0, 1]
+    assert (again["session"] == 0).sum() == len(series)
+    assert abs(again["command"].iloc[-1]) < 1e-6  # the test's end ramps down too: die at the actuator's centre
+
+
+def test_a_limit_stops_the_test_with_a_whole_ramp_down(tmp_path):
+    """The stroke limit trips mid-period: the ramp picks the forcing up at that phase and runs whole (no limit
+    breaks a ramp), the site sees die; the point is kept as unstable, its finding."""
+    site = SiteProcess("--once", *QUIET_SITE)
+    out = tmp_path / "rig.parquet"
+    client = run_cli(out, f"tcp://127.0.0.1:{site.port}", "-B", "stroke=0.015", "--stop-periods", "3",
+                     values=("--from", "10", "--to", "17", "--step", "7"))  # fmt: skip
+    _, err = client.communicate(timeout=300)
+    status, site_err = site.finish()
+    assert client.returncode == 1 and "stroke; forcing ramped to zero over 3 periods, die sent" in err, err
+    assert status == 0 and "stopped:" not in site_err
+    series = pq.read_table(tmp_path / "rig-timeseries.parquet").to_pandas()
+    ramp = series[series["point"] < 0]
+    assert len(ramp) >= 3 * 400 - 400  # the period broken off, then whole ones
+    force = series["Fe"].to_numpy()
+    assert np.abs(np.diff(force)).max() < 0.5  # 10 N at 400 ticks a period moves < 0.16 N a tick: no step to 0
+    kept = pq.read_table(sorted(out.with_name(out.name + ".parts").glob("part-*.parquet"))).to_pandas()
+    assert "unstable" in set(kept["status"])
 
 
 def test_a_site_that_dies_mid_sweep_leaves_whole_files_and_exit_1(tmp_path):
@@ -271,9 +303,10 @@ def test_a_realtime_site_paces_the_continuous_test(tmp_path):
     assert status == 0, err
     test_time = 2 * 5 / 2.5  # two points of 5 forcing periods at 2.5 Hz [s]
     assert wall >= 0.95 * test_time
-    assert (rows["late_ticks"] >= 0).all() and rows["late_ticks"].max() < 400  # at most a period's worth late
+    # how many replies came late depends on the machine's load (a benchmark's business); each point counts its own
+    assert rows["late_ticks"].between(0, 5 * 400).all()
     log = pq.read_table(tmp_path / "site-log.parquet", columns=["late"]).to_pandas()
-    assert len(log) == 2 * 5 * 400 and "deadline misses" in err
+    assert len(log) >= 2 * 5 * 400 and "deadline misses" in err  # the points, then the final ramp down
 
 
 def test_the_operators_nudge_takes_a_resting_pendulum_off_the_semi_trivial_branch(tmp_path):

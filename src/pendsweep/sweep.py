@@ -231,8 +231,7 @@ class SweepConfig:
         return backend
 
     def ramp_params(self, previous: float, value: float) -> list[ModelParams]:
-        """A ramp's first ``ramp_periods - 1`` periods' parameters: period k (1-based) runs k / ramp_periods of the
-        way from ``previous`` to ``value``, so the last one, and the rest of the transient, at ``value``."""
+        """A ramp's first ``ramp_periods - 1`` periods' parameters: period k runs k / ramp_periods of the way."""
         steps = self.ramp_periods
         return [self.params_at(previous + (k / steps) * (value - previous)) for k in range(1, steps)]
 
@@ -361,19 +360,14 @@ def _ramp(backend, params: list[ModelParams], state: np.ndarray) -> tuple[np.nda
 
 
 def _continue_branches(config, backend, branches, resume) -> Iterator[UnitResult]:
-    """Walk branches one after another, carrying the state (a ``loop``'s down branch starts where up ended).
-
-    ``branches`` is a list of ``(direction, point indices)``; ``resume``
-    describes finished units.
-    """
+    """Walk ``branches`` ``[(direction, point indices)]`` in turn, carrying the state (``resume``: finished units)."""
     state = None  # None: start (or restart) from config.initial
     kick_next = False
     previous: float | None = None  # the last point's value (a ramp starts there)
     pending: list[tuple[PointResult, ModelParams]] = []
     for direction, indices in branches:
         for i in indices:
-            key = unit_key(direction, i, 0)
-            if key in resume:
+            if (key := unit_key(direction, i, 0)) in resume:
                 info = resume[key]
                 state = np.asarray(info["state"], dtype=np.float64) if info["ok"] else None
                 kick_next = info["at_rest"]
@@ -392,7 +386,7 @@ def _continue_branches(config, backend, branches, resume) -> Iterator[UnitResult
                 (run,), settled, used = run_units(
                     config, backend, [params], np.array([state]), one_by_one=True, ramped=len(ramp)
                 )
-            else:
+            else:  # the ramp itself failed
                 run, settled, used = failed, [False], [len(ramp)]
             result = PointResult(direction, i, 0, config.values[i], run, kicked, "", bool(settled[0]), int(used[0]))
             pending.append((result, params))
@@ -476,7 +470,12 @@ def sweep_work(config: SweepConfig, backend) -> Work:
 
 
 def sweep_metadata(config: SweepConfig) -> dict[str, Any]:
-    return run_metadata("sweep", config.to_dict(), backend=config.backend, seed=config.seed)
+    meta = run_metadata("sweep", config.to_dict(), backend=config.backend, seed=config.seed)
+    if config.backend_options.get("rig"):  # where a rig is reached is no part of what it measures: resumes may move
+        from .site.continuous import address_free_hash
+
+        meta["config_hash"] = address_free_hash(meta["config"])
+    return meta
 
 
 @dataclass

@@ -131,12 +131,16 @@ def _resume_cost(tmp: Path) -> dict:
         proc.terminate()
         _, err = proc.communicate(timeout=60)
     served = sum(int(n) for n in re.findall(r"left after (\d+) steps", err))
+    import pyarrow.parquet as pq
+
+    ramp = int((pq.read_table(tmp / "resume-timeseries.parquet", columns=["point"])["point"].to_numpy() < 0).sum())
     per_point = (transient + record) * 400
     return {
         "points": len(values),
         "steps_served": served,
+        "steps_of_the_final_ramp_down": ramp,
         "steps_needed": len(values) * per_point,
-        "points_repeated": (served - len(values) * per_point) / per_point,
+        "points_repeated": (served - ramp - len(values) * per_point) / per_point,
     }
 
 

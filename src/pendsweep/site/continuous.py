@@ -121,6 +121,14 @@ def default_watch(watch: RigWatch | None, output: Path | None) -> RigWatch:
     return watch
 
 
+def address_free_hash(config: dict) -> str:
+    """The hash of a rig test's configuration without the rig's address: a site restarted on another port (or a
+    rig reached through another host) is the same specimen, and its test resumes there."""
+    from ..results import config_hash
+
+    return config_hash({**config, "backend_options": {**config["backend_options"], "rig": ""}})
+
+
 def check_rig_sweep(config, backend) -> None:
     """Refuse (``ConfigError``) a sweep that a remote rig cannot run."""
     check_sweepable(config.parameter, backend.rig)
@@ -133,6 +141,11 @@ def check_rig_sweep(config, backend) -> None:
     if config.mode == "continue" and config.kick:
         raise ConfigError(
             f"kick = {config.kick:g} rad: a remote rig's pendulum cannot be kicked from the client; give --kick 0"
+        )
+    if config.mode == "continue" and tuple(config.initial) != tuple(type(config).initial):
+        raise ConfigError(
+            f"initial = {list(config.initial)}: a remote rig starts from its site's own state; set the pendulum's "
+            "angle at the site (pendsweep site --theta0)"
         )
 
 
@@ -150,29 +163,36 @@ def rig_test(
     """
     walk = [(direction, i) for direction, indices in config.branches() for i in indices]
     todo = [(direction, i) for direction, i in walk if unit_key(direction, i, 0) not in resume]
-    if not todo:
-        return
-    reference = theta_max_by_unit(emulated) if emulated is not None else {}
     log = None
     if watch.timeseries is not None:
-        log = TimeSeriesLog(
-            watch.timeseries, timeseries_metadata(config, backend), config.parameter, watch.flush_seconds
-        )
+        meta = timeseries_metadata(config, backend)
+        log = TimeSeriesLog(watch.timeseries, meta, config.parameter, watch.flush_seconds, resume=bool(resume))
+    if not todo:  # every point finished: a merge the last run could not end, if any, ends here
+        if log is not None:
+            log.consolidate()
+        return
+    reference = theta_max_by_unit(emulated) if emulated is not None else {}
     progress = _Progress(config, backend, len(todo), watch, reference)
     plot = _LivePlot(watch.plot, config, emulated, finished_rows) if watch.plot is not None else None
     restarted = len(todo) < len(walk)
-    session: RigSession | None = None
-    params = previous = None
+    request = StopRequest()
+    params = config.params_at(config.values[todo[0][1]])
+    try:  # connecting (up to 10 s to a starting site) can be interrupted: nothing has moved yet
+        index = log.sessions_so_far() if log is not None else 0
+        session = RigSession(backend, params, log, request, session=index, stop_periods=watch.stop_periods)
+    except KeyboardInterrupt:
+        if log is not None:
+            log.consolidate()
+        raise RigStopped(f"stopped by SIGINT while connecting to {backend.rig}; the test had not begun", 130) from None
+    progress.session_opened(session, restarted, params_value(config, params))
+    previous = None
     rested = False  # the last point ended at rest: an in-process sweep would kick the pendulum now
     try:
-        with stop_on_signals(StopRequest()) as request:
+        with stop_on_signals(request):
             for direction, i in todo:
                 value = config.values[i]
                 params = config.params_at(value)
-                if session is None:
-                    index = log.sessions_so_far() if log is not None else 0
-                    session = RigSession(backend, params, log, request, session=index, stop_periods=watch.stop_periods)
-                    progress.session_opened(session, restarted, value)
+                session.direction = 1.0 if direction == "up" else -1.0
                 if rested:
                     progress.ask_for_nudge(value)
                 ramp = _ramp_of(config, previous, value)
@@ -193,14 +213,19 @@ def rig_test(
                 rested = run.status is Status.OK and at_rest(run.records[:, REC_THETA_ABSMAX], config.rest_threshold)
                 if session.stopped is not None:
                     raise session.stopped
-            session.close()
+            session.ramp_down(params)  # the end of the test: the forcing to zero, never die mid-stroke
     finally:
-        if session is not None and not session.closed and params is not None:
+        if not session.closed:
             # the consumer stopped early (an error writing results, a closed generator): the rig ramps down all the same
             with contextlib.suppress(RigStopped):
                 session.stop(params, "the test ended early")
         if log is not None:
             log.consolidate()
+
+
+def params_value(config, params) -> float:
+    """The swept parameter's value in ``params``."""
+    return float(getattr(params, config.parameter))
 
 
 def _ramp_of(config, previous: float | None, value: float) -> list:

@@ -26,11 +26,11 @@ What a session can and cannot change
 
 The safe stop (:meth:`RigSession.stop`): at the end of the forcing period
 in progress (a limit or the instability monitor: at once), the forcing amplitude is ramped
-to zero over ``stop_periods`` forcing periods (a step per period, at phase
-0, so the force stays continuous), the numerical model left to decay with
-its own damping for up to as many periods again, until its command is
-within one LVDT step of rest, then the last step is committed and the site
-told ``die``. A signal (SIGINT, SIGTERM), a limit (stroke, velocity, force
+to zero over ``stop_periods`` forcing periods (linearly, tick by tick, from
+where the forcing was: the force stays continuous), then the command sent is tapered to
+zero over as many periods again (the actuator brought home while the model
+runs on), the last step committed and the site told ``die``; a finished
+test ends the same way. A signal (SIGINT, SIGTERM), a limit (stroke, velocity, force
 of :class:`~.rig.RigLimits`) or the instability monitor triggers it; a lost
 or garbled reply cannot be ramped down (the rig is not answering) and
 closes the connection at once.
@@ -44,6 +44,7 @@ loses at most that), and consolidated into one parquet file of kind
 
 from __future__ import annotations
 
+import json
 import math
 import signal
 import threading
@@ -88,6 +89,8 @@ PHYSICAL_PARAMETERS = (*(name for name in KERNEL_FIELDS if name not in NUMERICAL
 STOP_PERIODS = 5
 #: Seconds between flushes of the time series (at most this much of it is lost when the client is killed).
 TIMESERIES_FLUSH_SECONDS = 2.0
+#: The command's column in a trace row.
+_TRACE_COMMAND = TRACE_COLUMNS.index("command")
 #: Exit status of a test stopped by SIGINT (the shell's 128 + 2); other stops exit 1.
 SIGINT_STATUS = 130
 
@@ -171,27 +174,52 @@ class TimeSeriesLog:
     substructured trace's: ``t, Fe, y`` (y*), ``ydot, command, x, xdot,
     x_meas, theta, theta_true, thetadot, Fs, Fs_true, F_fb, sync_error``;
     the site's readings where the client has them, NaN where it has not),
-    the parameter's value, ``round_trip`` [s], ``session`` and ``point``.
+    the parameter's value (NaN during a ramp down), ``fe_realised`` [Hz] (the
+    forcing frequency on whole controller ticks), ``round_trip`` [s],
+    ``session``, ``point`` (-1 during a ramp down) and ``direction`` (+1 up,
+    -1 down, 0 the ramp down).
     """
 
-    def __init__(self, path: Path, metadata: dict, parameter: str, flush_seconds: float = TIMESERIES_FLUSH_SECONDS):
+    def __init__(
+        self, path: Path, metadata: dict, parameter: str, flush_seconds: float = TIMESERIES_FLUSH_SECONDS,
+        resume: bool = True,
+    ) -> None:  # fmt: skip
         from ..results import schema_with_metadata
 
         self.path = Path(path)
         self.parts = self.path.with_name(self.path.name + ".parts")
+        if not resume:  # a new test: an earlier test's series at this path goes
+            self.path.unlink(missing_ok=True)
+            for old in self.parts.glob("*") if self.parts.is_dir() else ():
+                old.unlink()
         self.parts.mkdir(parents=True, exist_ok=True)
         self.parameter = parameter
         self.flush_seconds = flush_seconds
-        names = [*TRACE_COLUMNS, parameter, "round_trip", "session", "point"]
+        names = [*TRACE_COLUMNS, parameter, "fe_realised", "round_trip", "session", "point", "direction"]
         self.schema = schema_with_metadata(pa.schema([(n, pa.float64()) for n in names]), metadata)
         self._buffer: list[np.ndarray] = []
         self._last_flush = time.monotonic()
-        self._next = 1 + max((int(p.stem) for p in self.parts.glob("*.parquet") if p.stem.isdigit()), default=-1)
+        numbers = [int(name[:6]) for name in (*self._merged(), *(p.name for p in self._unmerged()))]
+        self._next = 1 + max(numbers, default=-1)  # never a name an earlier part had
+
+    def _merged(self) -> list[str]:
+        """The parts already merged into ``path`` (its metadata lists them)."""
+        if not self.path.is_file():
+            return []
+        meta = pq.read_schema(self.path).metadata or {}
+        return json.loads(meta.get(b"merged_parts", b"[]"))
+
+    def _unmerged(self) -> list[Path]:
+        """Parts not yet in ``path`` (a merge killed before it removed its parts leaves merged ones behind)."""
+        merged = set(self._merged())
+        return [p for p in sorted(self.parts.glob("[0-9]*.parquet")) if p.name not in merged]
 
     def sessions_so_far(self) -> int:
-        """Sessions already in the parts (a resumed test's new session gets the next index)."""
-        done = [pq.read_table(p, columns=["session"]) for p in sorted(self.parts.glob("*.parquet"))]
-        return 1 + max((int(np.max(t["session"].to_numpy())) for t in done if t.num_rows), default=-1)
+        """Sessions already kept, merged or not (a resumed test's new session gets the next index)."""
+        tables = [pq.read_table(p, columns=["session"]) for p in self._unmerged()]
+        if self.path.is_file():
+            tables.append(pq.read_table(self.path, columns=["session"]))
+        return 1 + max((int(np.max(t["session"].to_numpy())) for t in tables if t.num_rows), default=-1)
 
     def append(self, rows: np.ndarray) -> None:
         """Buffer ``rows`` (n, len(columns)); write a part when the last write is older than ``flush_seconds``."""
@@ -213,14 +241,24 @@ class TimeSeriesLog:
         self._next += 1
 
     def consolidate(self) -> Path:
-        """Flush, then merge every part (this session's and earlier ones') into ``path``; the parts go."""
+        """Flush, then merge the parts not yet merged into ``path`` (earlier sessions' rows kept); the parts go.
+
+        ``path`` is rewritten atomically with the names of every part it holds
+        in its metadata, before any part is removed: a merge killed half way
+        leaves either the old file and all parts, or the new file and parts it
+        already holds (skipped next time).
+        """
         from ..results import atomic_write_table
 
         self.flush()
-        parts = sorted(self.parts.glob("*.parquet"))
-        tables = [pq.read_table(p).cast(self.schema) for p in parts]
-        atomic_write_table(pa.concat_tables(tables) if tables else self.schema.empty_table(), self.path)
-        for p in parts:
+        merged, parts = self._merged(), self._unmerged()
+        tables = [pq.read_table(self.path).cast(self.schema)] if self.path.is_file() else []
+        tables += [pq.read_table(p).cast(self.schema) for p in parts]
+        rows = pa.concat_tables(tables) if tables else self.schema.empty_table()
+        names = json.dumps(merged + [p.name for p in parts]).encode()
+        atomic_write_table(rows.replace_schema_metadata({**(self.schema.metadata or {}), b"merged_parts": names}),
+                           self.path)  # fmt: skip
+        for p in self.parts.glob("*"):
             p.unlink()
         self.parts.rmdir()
         return self.path
@@ -275,6 +313,10 @@ class RigSession:
         self.readings = np.empty(4)  # f_meas, fs_true (not measured remotely), theta_x, x_meas
         self.late_ticks = 0  # replies that came more than a step after their simulated time (real time missed)
         self.closed = False
+        self.stopping = False  # ramping down: no limit breaks a period
+        self.last_sent = 0.0  # the command sent last [m]
+        self.broke_at = 0  # the tick of its period at which the last period broke off (0: it ran whole)
+        self.direction = 1.0  # the branch in the time series: +1 up, -1 down, 0 the ramp down
         self.stopped: RigStopped | None = None  # set when the test had to stop (a limit, an unstable loop)
         self._take(self.rig.reply)
         # Time 0 on the wall clock, a step before the first reply: a real-time site paces every later reply
@@ -335,31 +377,65 @@ class RigSession:
                 return Status.UNSTABLE, period, records, np.asarray(trips)
         return Status.OK, transient + record, records, np.asarray(trips)
 
-    def _period(self, params, records, r_idx, value, point, trips) -> tuple[int, str]:
-        """One forcing period at ``params`` (record row ``r_idx``, < 0: none); ``(status code, reason)``."""
+    def _period(
+        self, params, records, r_idx, value, point, trips, from_step: int = 0,
+        envelope: tuple[float, float] = (1.0, 1.0), homing: tuple[float, float] | None = None,
+    ) -> tuple[int, str]:  # fmt: skip
+        """One forcing period at ``params`` from tick ``from_step`` of it (record row ``r_idx``, < 0: none).
+
+        Returns ``(status code, reason)``. A limit breaks the period off and
+        :attr:`broke_at` keeps the tick, where a safe stop's ramp picks the
+        forcing up (its phase continuous). While stopping no limit breaks a
+        period: the ramp must run. Every tick run is logged, also those of a
+        period cut short by a lost reply. ``envelope = (e0, e1)`` scales the
+        forcing linearly from ``e0`` at tick ``from_step`` to ``e1`` at the
+        period's end (a ramp down). ``homing = (u0, u1)``: the command
+        sent is tapered by ``(1 + cos(pi u)) / 2`` with ``u`` going from ``u0``
+        to ``u1`` over the period (:meth:`ramp_down`).
+        """
         params = self.realised(params)
         cfg = self.backend.loop_settings(params, dt=self.dt)
         p = params.kernel_array()
         n = cfg.steps_per_period
         table = forcing_table(cfg.alpha, n)
+        if envelope != (1.0, 1.0):  # on the half-step grid of the table (RK4's stages)
+            e0, e1 = envelope
+            half_steps = np.arange(table.shape[0]) / 2.0
+            table = table * (e0 + (e1 - e0) * np.clip((half_steps - from_step) / (n - from_step), 0.0, 1.0))
         trace = np.full((n, N_TRACE_COLUMNS), np.nan) if self.log is not None else np.empty((n, 0))
         row = np.empty(N_RECORD_COLUMNS)
         record_open(row)
         sum_x2 = sum_h2 = 0.0
         code, reason = STATUS_OK, ""
         first_trip = len(trips)
-        for jstep in range(n):
-            command, slope = client_tick(self.state, p, cfg, table, jstep, self.ticks, self.readings, row, trace[jstep])
-            reply = self._step(command, slope, trips)
-            x = self.state[S_X]
-            d2 = reply[4] * self.dt * self.dt  # the daq acceleration: an LVDT's second difference measures its noise
-            sum_x2 += x * x
-            sum_h2 += d2 * d2
-            code = stroke_status(x, self.state[S_Y], cfg.stroke)
-            reason = self._limit_exceeded(reply) if code == STATUS_OK else "stroke"
-            if reason:
-                code = STATUS_UNSTABLE
-                break
+        self.broke_at = 0
+        try:
+            for jstep in range(from_step, n):
+                command, slope = client_tick(
+                    self.state, p, cfg, table, jstep, self.ticks, self.readings, row, trace[jstep - from_step]
+                )
+                if homing is not None:
+                    if self.log is not None:  # the trace shows the command in force, the tapered one sent last
+                        trace[jstep - from_step, _TRACE_COMMAND] = self.last_sent
+                    command, slope = _tapered(command, slope, homing, (jstep + 1) / n, n * self.dt)
+                reply = self._step(command, slope, trips)
+                self.last_sent = command
+                x = self.state[S_X]
+                d2 = reply[4] * self.dt * self.dt  # the daq acceleration: an LVDT's second difference measures noise
+                sum_x2 += x * x
+                sum_h2 += d2 * d2
+                if self.stopping:
+                    continue
+                code = stroke_status(x, self.state[S_Y], cfg.stroke)
+                reason = self._limit_exceeded(reply) if code == STATUS_OK else "stroke"
+                if reason:
+                    code, self.broke_at = STATUS_UNSTABLE, (jstep + 1) % n
+                    break
+        finally:
+            if self.log is not None:
+                self._log(trace[: len(trips) - first_trip], value, point, trips[first_trip:], params)
+        if self.stopping:
+            return STATUS_OK, ""
         if code == STATUS_OK and high_frequency_growth(sum_x2, sum_h2, n, self.dt, TWO_PI * cfg.fe, cfg):
             self.hf_run += 1
         elif code == STATUS_OK:
@@ -367,8 +443,6 @@ class RigSession:
         before = self.state[S_THETA]
         code, self.hf_run = close_period(self.state, row, records, r_idx, code, self.hf_run, False, cfg)
         self.turns += int(round((before - self.state[S_THETA]) / TWO_PI))
-        if self.log is not None:
-            self._log(trace[: len(trips) - first_trip], value, point, trips[first_trip:])
         if code != STATUS_OK and not reason:
             reason = "the instability monitor (high-frequency growth of the platform's motion)"
         return code, reason
@@ -378,7 +452,7 @@ class RigSession:
             reply = self.rig.step(command, slope, (self.ticks + 1) * self.dt, commit=self.ticks > 0)
         except RunFailure as exc:
             self._abandon()
-            raise RigStopped(f"{exc}; the rig could not be ramped down (no reply)") from None
+            raise RigStopped(f"{exc}; the rig could not be ramped down (its connection is lost)") from None
         self.ticks += 1
         now = time.perf_counter()
         if self.wall_start is None:
@@ -389,38 +463,57 @@ class RigSession:
         self._take(reply)
         return reply
 
-    def _log(self, trace: np.ndarray, value: float, point: int, trips: list[float]) -> None:
+    def _log(self, trace: np.ndarray, value: float, point: int, trips: list[float], params: ModelParams) -> None:
         extra = np.column_stack(
             [
                 np.full(len(trips), value),
+                np.full(len(trips), params.fe),  # the realised forcing frequency
                 np.asarray(trips),
                 np.full(len(trips), self.session),
                 np.full(len(trips), point),
+                np.full(len(trips), self.direction),
             ]
         )
         self.log.append(np.hstack([trace, extra]))
 
     # -- ending ----------------------------------------------------------------------------------------------
     def stop(self, params: ModelParams, reason: str, exit_code: int = 1) -> None:
-        """Ramp the forcing to zero over :attr:`stop_periods`, let the model come to rest, close; raise :class:`RigStopped`."""
-        stop_periods = self.stop_periods
-        self.stop_request = StopRequest()  # the ramp itself must run; a second signal is not a new stop
-        lvdt = max(self.backend.lvdt_resolution, 1e-5)
+        """:meth:`ramp_down` from ``params``, close, and raise :class:`RigStopped` with ``reason``."""
         try:
-            for k in range(stop_periods):
-                self._ramp_period(params.replace(alpha=params.alpha * (1.0 - (k + 1) / stop_periods)))
-            for _ in range(stop_periods):  # the model decays with its own damping, the command continuous
-                if abs(self.state[S_Y]) < lvdt and abs(self.state[S_X]) < lvdt:
-                    break
-                self._ramp_period(params.replace(alpha=0.0))
+            self.ramp_down(params)
         except RigStopped as exc:
             raise RigStopped(f"{reason}; {exc}", exit_code) from None
-        self.close()
-        raise RigStopped(f"{reason}; forcing ramped to zero over {stop_periods} periods, die sent", exit_code)
+        raise RigStopped(f"{reason}; forcing ramped to zero over {self.stop_periods} periods, die sent", exit_code)
 
-    def _ramp_period(self, params: ModelParams) -> None:
+    def ramp_down(self, params: ModelParams) -> None:
+        """Ramp the forcing to zero over :attr:`stop_periods`, bring the actuator home, commit and send die.
+
+        The ramp picks the forcing up where the last period broke off and
+        scales its amplitude down linearly, tick by tick, to zero at the end of
+        the ramp's last period: the force stays continuous. Then,
+        over as many periods again, the command sent is tapered to zero (a
+        half cosine, its slope continuous) while the numerical model runs on:
+        the pendulum, lightly damped, would keep the oscillator swinging
+        through the load cell for minutes, so the platform is brought to its
+        centre rather than waited for. Every test ends so, a finished one too:
+        a rig is never left mid-stroke.
+        """
+        self.stop_request = StopRequest()  # the ramp itself must run; a second signal is not a new stop
+        self.stopping, self.direction = True, 0.0
+        from_step = self.broke_at
         scratch = np.full((0, N_RECORD_COLUMNS), np.nan)
-        self._period(params, scratch, -1, math.nan, -1, [])
+        n = self.backend.loop_settings(self.realised(params), dt=self.dt).steps_per_period
+        total = (n - from_step) + (self.stop_periods - 1) * n  # ticks of the ramp
+        done = 0
+        for _ in range(self.stop_periods):
+            ticks = n - from_step
+            envelope = (1.0 - done / total, 1.0 - (done + ticks) / total)
+            self._period(params, scratch, -1, math.nan, -1, [], from_step, envelope=envelope)
+            done, from_step = done + ticks, 0
+        for k in range(self.stop_periods):
+            homing = (k / self.stop_periods, (k + 1) / self.stop_periods)
+            self._period(params.replace(alpha=0.0), scratch, -1, math.nan, -1, [], homing=homing)
+        self.close()
 
     def close(self) -> None:
         """Commit the last step and send die (the session ends normally)."""
@@ -432,6 +525,15 @@ class RigSession:
         if not self.closed:
             self.closed = True
             self.rig.sock.close()
+
+
+def _tapered(command: float, slope: float, homing: tuple[float, float], at: float, period: float):
+    """``(command, slope)`` times the homing taper ``(1 + cos(pi u)) / 2`` at the fraction ``at`` of a period [s]."""
+    u0, u1 = homing
+    u = u0 + (u1 - u0) * at
+    weight = 0.5 * (1.0 + math.cos(math.pi * u))
+    rate = -0.5 * math.pi * math.sin(math.pi * u) * (u1 - u0) / period  # d(weight)/dt [1/s]
+    return command * weight, slope * weight + command * rate
 
 
 class _StopNow(Exception):
