@@ -22,9 +22,12 @@ import numpy as np
 
 from .registry import benchmark
 
-#: Records in the full and the quick run.
+#: Records in the full and the quick run, and look-alike records (issue 34) in each.
 RECORDS, QUICK_RECORDS = 200, 16
+LOOK_ALIKE_RECORDS, QUICK_LOOK_ALIKE_RECORDS = 60, 6
 GOALS = {"single_recall": 0.95, "clean_false_positive_rate": 0.02, "oov_flagged": 0.90, "pairs_right": 0.80}
+#: Look-alike records whose forcing separates them: the right cause named alone (not tied).
+LOOK_ALIKE_GOAL = 0.95
 FIGURE = Path("results/diagnosis_confusion.png")
 
 
@@ -71,6 +74,94 @@ def evaluate(seed: int) -> dict:
             sigma = js["uncertainty"].get(p, math.nan)
             row["estimate_z"][cause] = abs(err) / sigma if sigma > 0 else math.inf
     return row
+
+
+def evaluate_look_alike(seed: int, kind: str) -> dict:
+    """Generate the look-alike record of ``seed`` (:func:`~pendsweep.diagnose.testbench.draw_look_alike_case`),
+    diagnose it as a user would, and score it: right alone (no look-alike tied), right or tied, the tie's reason."""
+    from ..diagnose.chain import diagnose_records
+    from ..diagnose.effects import EFFECTS
+    from ..diagnose.testbench import LOOK_ALIKE_CAUSES, SEPARATING_FORCINGS, generate_look_alike_case
+
+    forcing, case, record = generate_look_alike_case(seed, kind)
+    t0 = time.perf_counter()
+    js = diagnose_records([record]).to_json()
+    seconds = time.perf_counter() - t0
+    truth, value = next(iter(case.effects.items()))
+    part = js["parts"]["numerical"] if "parts" in js else js
+    partners = set(LOOK_ALIKE_CAUSES) - {truth}
+    estimate = js["estimate"].get(EFFECTS[truth].param)
+    sigma = js["uncertainty"].get(EFFECTS[truth].param)
+    right = js["cause"] == truth
+    return {
+        "seed": seed,
+        "kind": kind,
+        "forcing": forcing,
+        "separating": forcing in SEPARATING_FORCINGS,
+        "rate": case.rate,
+        "theta_init": case.theta_init,
+        "truth": truth,
+        "value": value,
+        "verdict": js["cause"],
+        "tied_with": js["tied_with"],
+        "tie_reasons": part.get("tie_reasons", {}),
+        "unexplained": js["unexplained"],
+        "right_alone": right and not partners & set(js["tied_with"]),
+        "right_or_tied": right or (truth in js["tied_with"] and js["cause"] in LOOK_ALIKE_CAUSES),
+        "estimate_rel_error": abs(estimate - value) / abs(value) if right and estimate is not None else None,
+        "estimate_z": abs(estimate - value) / sigma if right and sigma else None,
+        "seconds": seconds,
+    }
+
+
+def run_look_alikes(seeds, kind: str, n_jobs: int = 2, progress: bool = True) -> list[dict]:
+    """Rows of :func:`evaluate_look_alike` for ``seeds`` (joblib processes)."""
+    from joblib import Parallel, delayed
+    from tqdm import tqdm
+
+    it = tqdm(list(seeds), desc=f"look-alike {kind} records", file=sys.stderr, disable=not progress)
+    return list(Parallel(n_jobs=n_jobs, backend="loky")(delayed(evaluate_look_alike)(s, kind) for s in it))
+
+
+def summarize_look_alikes(rows: list[dict]) -> dict:
+    """Look-alikes right alone where the forcing separates them (goal :data:`LOOK_ALIKE_GOAL`), right or
+    tied under one steady tone (with the tie's reason), per forcing, and the estimates' errors."""
+
+    def rate(rs, ok):
+        return sum(map(ok, rs)) / len(rs) if rs else math.nan
+
+    separating = [r for r in rows if r["separating"]]
+    steady = [r for r in rows if not r["separating"]]
+    tied = [r for r in rows if r["tied_with"]]
+    errors = [r["estimate_rel_error"] for r in rows if r["estimate_rel_error"] is not None]
+    out = {
+        "records": len(rows),
+        "separating_right_alone": rate(separating, lambda r: r["right_alone"]),
+        "one_tone_right_or_tied": rate(steady, lambda r: r["right_or_tied"]),
+        "ties_with_reason": rate(tied, lambda r: bool(r["tie_reasons"])),
+        "flagged_unexplained": rate(rows, lambda r: r["unexplained"]),
+        "by_forcing": {
+            f: {
+                "records": len(rs),
+                "right_alone": rate(rs, lambda r: r["right_alone"]),
+                "right_or_tied": rate(rs, lambda r: r["right_or_tied"]),
+            }
+            for f in sorted({r["forcing"] for r in rows})
+            for rs in [[r for r in rows if r["forcing"] == f]]
+        },
+        "estimate_rel_error_quantiles": (
+            {q: float(np.quantile(errors, float(q))) for q in ("0.5", "0.9", "0.99")} if errors else {}
+        ),
+        "seconds_per_record_median": float(np.median([r["seconds"] for r in rows])) if rows else math.nan,
+        "misses": [
+            {k: r[k] for k in ("seed", "forcing", "rate", "theta_init", "truth", "verdict", "tied_with", "unexplained")}
+            for r in rows
+            if not (r["right_alone"] if r["separating"] else r["right_or_tied"])
+        ],
+        "goal": LOOK_ALIKE_GOAL,
+    }
+    out["goal_met"] = out["separating_right_alone"] >= LOOK_ALIKE_GOAL
+    return out
 
 
 def run_population(seeds, n_jobs: int = 2, progress: bool = True) -> list[dict]:
@@ -210,16 +301,29 @@ def bench_diagnosis(quick: bool) -> dict:
         f"TEST_SEEDS (range B) {TEST_SEEDS[0]}..{TEST_SEEDS[0] + n - 1}; thresholds chosen on CALIBRATION_SEEDS (range A)"
     )
     summary["figure"] = str(plot(summary, FIGURE))
+    m = QUICK_LOOK_ALIKE_RECORDS if quick else LOOK_ALIKE_RECORDS
+    t0 = time.perf_counter()
+    summary["look_alikes"] = summarize_look_alikes(run_look_alikes(TEST_SEEDS[:m], "forced"))
+    summary["look_alikes"]["wall_seconds"] = time.perf_counter() - t0
+    summary["look_alikes"]["seed_range"] = f"TEST_SEEDS (range B) {TEST_SEEDS[0]}..{TEST_SEEDS[0] + m - 1}, forced"
     return summary
 
 
 def main(argv: list[str]) -> None:
-    """``python -m pendsweep.bench.diagnosis calibrate N``: statistics on the calibration seeds."""
+    """``python -m pendsweep.bench.diagnosis calibrate N [OUT] [KIND]``: statistics on the calibration seeds;
+    KIND ``forced`` or ``substructured`` calibrates on look-alike records (issue 34) instead."""
     import json
 
     from ..diagnose.testbench import CALIBRATION_SEEDS
 
     n = int(argv[1]) if len(argv) > 1 else 60
+    if len(argv) > 3:
+        rows = run_look_alikes(CALIBRATION_SEEDS[:n], argv[3])
+        out = Path(argv[2])
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(json.dumps({"rows": rows, "summary": summarize_look_alikes(rows)}, indent=1, default=float))
+        print(json.dumps(summarize_look_alikes(rows), indent=1, default=float))
+        return
     rows = run_population(CALIBRATION_SEEDS[:n])
     out = Path(argv[2]) if len(argv) > 2 else Path("results/diagnosis_calibration.json")
     out.parent.mkdir(parents=True, exist_ok=True)

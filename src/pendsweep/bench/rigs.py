@@ -33,6 +33,10 @@ from .registry import benchmark
 #: Records in the full and the quick run, and how many of them are also replayed in closed loop.
 RECORDS, QUICK_RECORDS = 160, 8
 CLOSED_LOOP_RECORDS, QUICK_CLOSED_LOOP = 40, 2
+#: Look-alike servo-rig records (issue 34: coded K, M or k3 changes under separating forcing), and rigs
+#: diagnosed jointly from several records each (and how many records per rig).
+LOOK_ALIKE_RECORDS, QUICK_LOOK_ALIKE_RECORDS = 40, 4
+JOINT_RIGS, QUICK_JOINT_RIGS, JOINT_RECORDS = 12, 2, 3
 GOALS = {
     "clean_named_none": 0.98,
     "single_recall": 0.97,
@@ -100,6 +104,53 @@ def _estimate(js: dict, cause: str) -> float | None:
         return js["estimate"].get("tau") if cause == "actuator_delay" else None
     key = ACTUATOR_CAUSES[cause][0] if cause in ACTUATOR_CAUSES else EFFECTS[cause].param
     return js["estimate"].get(key)
+
+
+def evaluate_joint(seed: int) -> dict:
+    """Several records of one servo rig (:func:`~pendsweep.diagnose.testbench.generate_rig_session`) diagnosed
+    jointly, part by part, and scored as one record."""
+    from ..diagnose.chain import diagnose_parts
+    from ..diagnose.testbench import generate_rig_session
+
+    category, cases, records = generate_rig_session(seed, JOINT_RECORDS)
+    t0 = time.perf_counter()
+    js = diagnose_parts(records).to_json()
+    seconds = time.perf_counter() - t0
+    truth = cases[0].label
+    return {
+        "seed": seed,
+        "category": category,
+        "records": len(records),
+        "truth": truth,
+        "verdict": js["cause"],
+        "tied_with": js["tied_with"],
+        "unexplained": js["unexplained"],
+        "right": right(truth, js["cause"]),
+        "spurious": category == "single" and truth in js["cause"].split("+") and js["cause"] != truth,
+        "seconds": seconds,
+    }
+
+
+def summarize_joint(rows: list[dict]) -> dict:
+    """Joint diagnoses of several records per rig: clean rigs named none, single effects named right, spurious causes."""
+    clean = [r for r in rows if r["category"] == "clean"]
+    singles = [r for r in rows if r["category"] == "single"]
+
+    def rate(rs, ok):
+        return sum(map(ok, rs)) / len(rs) if rs else math.nan
+
+    return {
+        "rigs": len(rows),
+        "records_per_rig": rows[0]["records"] if rows else 0,
+        "clean_named_none": rate(clean, lambda r: r["verdict"] == "none"),
+        "single_recall": rate(singles, lambda r: r["right"]),
+        "spurious_second_cause": rate(singles, lambda r: r["spurious"]),
+        "flagged_unexplained": rate(rows, lambda r: r["unexplained"]),
+        "seconds_per_rig_median": float(np.median([r["seconds"] for r in rows])) if rows else math.nan,
+        "misses": [
+            {k: r[k] for k in ("seed", "truth", "verdict", "tied_with", "unexplained")} for r in rows if not r["right"]
+        ],
+    }
 
 
 def run_population(seeds, closed_loop: int, n_jobs: int = 2, progress: bool = True) -> list[dict]:
@@ -196,4 +247,20 @@ def bench_rigs(quick: bool) -> dict:
     summary["wall_seconds"] = time.perf_counter() - t0
     summary["seed_range"] = f"TEST_SEEDS (range B) {TEST_SEEDS[0]}..{TEST_SEEDS[0] + n - 1}"
     summary["figure"] = str(plot(summary, FIGURE))
+    from joblib import Parallel, delayed
+
+    from .diagnosis import run_look_alikes, summarize_look_alikes
+
+    m = QUICK_LOOK_ALIKE_RECORDS if quick else LOOK_ALIKE_RECORDS
+    t0 = time.perf_counter()
+    summary["look_alikes"] = summarize_look_alikes(run_look_alikes(TEST_SEEDS[:m], "substructured"))
+    summary["look_alikes"]["wall_seconds"] = time.perf_counter() - t0
+    summary["look_alikes"]["seed_range"] = f"TEST_SEEDS (range B) {TEST_SEEDS[0]}..{TEST_SEEDS[0] + m - 1}, servo rigs"
+    j = QUICK_JOINT_RIGS if quick else JOINT_RIGS
+    t0 = time.perf_counter()
+    seeds = TEST_SEEDS[RECORDS : RECORDS + j]  # rigs not among the single records above
+    joint = list(Parallel(n_jobs=2, backend="loky")(delayed(evaluate_joint)(s) for s in seeds))
+    summary["joint"] = summarize_joint(joint)
+    summary["joint"]["wall_seconds"] = time.perf_counter() - t0
+    summary["joint"]["seed_range"] = f"TEST_SEEDS (range B) {seeds[0]}..{seeds[-1]}, {JOINT_RECORDS} records per rig"
     return summary

@@ -55,7 +55,7 @@ from ..scan import Work
 from .effects import ACTUATOR_CAUSES, PART_OF
 from .fit import DIAGNOSIS_BYTES_PER_SAMPLE, FIT_EVALUATIONS, Diagnosis, diagnose
 from .parts import NumericalReplay, PhysicalReplay, physical_substeps
-from .thresholds import BEAM, PARTNERS, Z_MIN
+from .thresholds import BEAM, DERIVATIVE_RATIO, PARTNERS, Z_MIN
 from .transfer import Actuator, TransferIdentification, dominant_frequency, identify_transfer, nominal_actuator
 
 #: Largest difference of effective delay at the forcing frequency that is a convention, not a fault [s].
@@ -187,7 +187,19 @@ class PartsDiagnosis:
 
     @property
     def unexplained(self) -> bool:
-        return any(d.unexplained for d in self.diagnoses)
+        """A part's replay leaves more than noise, or a measured platform velocity or acceleration
+        disagrees with the motion that drove the specimen's replay (:data:`DERIVATIVE_RATIO`)."""
+        return any(d.unexplained for d in self.diagnoses) or bool(self.motion_mismatch())
+
+    def motion_mismatch(self) -> list[str]:
+        """The measured platform derivatives (``ydot``, ``yddot``) the identified motion misses by more than
+        :data:`DERIVATIVE_RATIO` times their noise variance, as ``column@record``."""
+        return [
+            f"{column}@{i}"
+            for i, verdict in enumerate(self.transfer_verdicts)
+            for column, check in verdict.get("measured_derivatives", {}).items()
+            if check["ratio_to_noise"] > DERIVATIVE_RATIO
+        ]
 
     def _pooled(self, error) -> float:
         """Sample-weighted RMS over the replayed parts of a per-part NRMSE, ``error(diagnosis)``."""
@@ -202,7 +214,11 @@ class PartsDiagnosis:
         transfer = []
         for ident, verdict in zip(self.transfers, self.transfer_verdicts):
             entry = ident.to_json()
-            entry.update(cause="+".join(verdict["causes"]) or "none", tests=verdict["tests"])
+            entry.update(
+                cause="+".join(verdict["causes"]) or "none",
+                tests=verdict["tests"],
+                measured_derivatives=verdict.get("measured_derivatives", {}),
+            )
             transfer.append(entry)
             for name, value, sigma in verdict["estimates"].values():
                 key = name if len(self.transfers) == 1 else f"{name}@{len(transfer) - 1}"
@@ -234,6 +250,7 @@ class PartsDiagnosis:
             "gain": 1.0 - after / before if self.cause != "none" and before > 0 else 0.0,
             "explained_share": float(np.clip((before**2 - after**2) / excess, 0.0, 1.0)) if excess > 0 else 0.0,
             "unexplained": self.unexplained,
+            "motion_mismatch": self.motion_mismatch(),
             "tied_with": sorted(set(tied)),
             "noise_floor": floor,
             "parts": parts,
@@ -306,6 +323,9 @@ def diagnose_parts(
             r.t, r.channel("y_cmd"), r.channel("y"), forcing_frequency(r), nominal_actuator(r.actuator, r.tau)
         )
         verdict = judge_transfer(ident)
+        verdict["measured_derivatives"] = ident.compare_derivatives(
+            {c: r.channel(c) for c in ("ydot", "yddot") if c in r.data}
+        )
         if wanted is not None:
             verdict["causes"] = [c for c in verdict["causes"] if c in wanted]
             verdict["estimates"] = {c: v for c, v in verdict["estimates"].items() if c in wanted}

@@ -69,7 +69,7 @@ The thresholds were chosen on the calibration seed range of
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -80,6 +80,7 @@ from ..errors import ConfigError
 from ..scan import Work
 from .effects import EFFECTS, applicable
 from .fitting import Fit, Problem, _params, _solve, fit_model
+from .identify import OscillatorIdentification, identified_starts, identify_oscillator
 from .judging import (
     _judge,
     _quantisation_bounded,
@@ -113,6 +114,8 @@ class Diagnosis:
     candidates: list[Fit]
     cause: str
     tests: dict[str, Any]
+    #: Per record, the oscillator's dynamics read off it before any replay (:mod:`.identify`), or None.
+    identified: list[OscillatorIdentification | None] = field(default_factory=list)
 
     @property
     def replay(self) -> Replay:
@@ -178,8 +181,12 @@ class Diagnosis:
 
         A candidate of as many causes as the verdict's, with plausible estimates, that explains at
         least :data:`SHARE_MIN` of the nominal's excess, and that the verdict does not beat on the
-        held-out blocks (one-sided signed-rank test, p >= :data:`P_VALUE`): the data do not tell
-        them apart, whatever the ranking by cross-validated error says.
+        held-out blocks (one-sided signed-rank test, p >= :data:`P_VALUE`), neither in the pooled
+        error nor in units of each channel's noise: the data do not tell them apart, whatever the
+        ranking by cross-validated error says. The second test is what separates look-alikes whose
+        difference lies in a channel the pooled error underweights (a small pendulum's angle, a
+        few encoder steps, swamps the pooled error with its own noise while the oscillator's
+        displacement, many times its noise apart between a stiffness and a hardening, is diluted).
         """
         best = self.best
         if best is None:
@@ -192,8 +199,34 @@ class Diagnosis:
             if c.cause in self.tests.get("implausible", {}) or excess <= 0:
                 continue
             share = (self.nominal.error_cv**2 - c.error_cv**2) / excess
-            if share >= SHARE_MIN and block_test(c, best) >= P_VALUE:
+            if share >= SHARE_MIN and block_test(c, best) >= P_VALUE and block_test(c, best, whitened=True) >= P_VALUE:
                 out.append(c.cause)
+        return out
+
+    def tie_reasons(self) -> dict[str, str]:
+        """Why each tied look-alike of the verdict is tied, from what the record holds (:mod:`.identify`).
+
+        For the oscillator's look-alikes (K against M, K against k3): that the record cannot separate
+        them (one steady tone: only ``K - M omega^2``; a constant amplitude: a cubic spring is a
+        constant stiffness), or that it could in principle and the fits did not.
+        """
+        best = self.best
+        found = [i for i in self.identified if i is not None]
+        if best is None or not found:
+            return {}
+        out = {}
+        for tied in self.tied_with():
+            for own, other in ((a, b) for a in best.causes for b in tied.split("+") if a != b):
+                verdicts = [i.separates(own, other) for i in found]
+                if any(v is None for v in verdicts):
+                    continue
+                if all(not separable for separable, _ in verdicts):
+                    out[tied] = f"the record cannot separate {own} from {other}: " + verdicts[0][1]
+                else:
+                    out[tied] = (
+                        f"the record can separate {own} from {other} in principle ({verdicts[0][1]}), "
+                        "but the replays' fits do not on the held-out blocks"
+                    )
         return out
 
     @property
@@ -249,6 +282,7 @@ class Diagnosis:
             "explained_share": self.explained_share,
             "unexplained": self.unexplained,
             "tied_with": self.tied_with(),
+            "tie_reasons": self.tie_reasons(),
             "residual_to_noise": channel_ratios(self.problem, self.verdict_fit),
             "noise_floor": self.noise_floor,
             "validation": self.validation(),
@@ -267,6 +301,7 @@ class Diagnosis:
                 for c in self.candidates
             ],
             "second_round": self.second_round_note(),
+            "identification": [i.to_json() if i is not None else None for i in self.identified],
             "nuisance": {k: v for k, v in self.verdict_fit.values.items() if k.split("@")[0] in self.problem.nuisance},
         }
 
@@ -370,8 +405,19 @@ def _diagnose(problem: Problem, causes: list[str] | None, n_jobs: int) -> Diagno
     # the data start at 0.5): candidates also start from the data's own initial states, and the
     # better fit is kept.
     data_start = ({},) if any(rp.fits_initial_state for rp in problem.replays) else ()
+    # The oscillator's parameters also start where the record points (identify.py): a fit from the
+    # nominal can stop in another basin when a resonance lies between the nominal and the truth.
+    identified = [identify_oscillator(rp) for rp in problem.replays]
     pool = Parallel(n_jobs=n_jobs, prefer="threads")
-    fits = pool(delayed(fit_model)(problem, (c,), nuisance, data_start) for c in causes)
+    fits = pool(
+        delayed(fit_model)(
+            problem,
+            (c,),
+            nuisance,
+            data_start + tuple(dict(nuisance, **s) for s in identified_starts(identified, (c,))),
+        )
+        for c in causes
+    )
     tests: dict[str, Any] = {"noise_floor": problem.floor}
     verdict = "none"
     # A cause whose estimate is physically implausible is absorbing something else: it is not named,
@@ -404,8 +450,9 @@ def _diagnose(problem: Problem, causes: list[str] | None, n_jobs: int) -> Diagno
             delayed(fit_model)(
                 problem,
                 s.causes + (c,),
-                _without_zeros(dict(nuisance, **s.values)),
-                _pair_starts(problem, s, singles[c]),
+                start := _without_zeros(dict(nuisance, **s.values)),
+                _pair_starts(problem, s, singles[c])
+                + tuple(dict(start, **i) for i in identified_starts(identified, s.causes + (c,))),
             )
             for s, c in jobs
         )
@@ -431,4 +478,4 @@ def _diagnose(problem: Problem, causes: list[str] | None, n_jobs: int) -> Diagno
             verdict = pair.cause
         fits += pairs
     fits.sort(key=_rank)
-    return Diagnosis(problem, nominal, fits, verdict, tests)
+    return Diagnosis(problem, nominal, fits, verdict, tests, identified)

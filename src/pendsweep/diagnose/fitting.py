@@ -113,6 +113,8 @@ class Fit:
         The fitted values of every fold.
     block_mse : ndarray
         Mean squared normalised out-of-fold residual per block (all records' blocks).
+    block_chi2 : ndarray or None
+        The same in units of each channel's noise (:func:`_whitened_square`).
     record_cv : list of float
         Out-of-fold NRMSE per record (the cross-record prediction error when several).
     bic : float
@@ -132,6 +134,7 @@ class Fit:
     bic: float
     sims: list[dict[str, np.ndarray]] = field(repr=False, default_factory=list)
     oof: list[dict[str, np.ndarray]] = field(repr=False, default_factory=list)
+    block_chi2: np.ndarray | None = field(repr=False, default=None)
 
     @property
     def cause(self) -> str | None:
@@ -252,9 +255,11 @@ def _solve(
             if idx is None or len(idx) == 0:
                 continue
             sim = rp.simulate(problem.record_values(vals, i), int(idx[-1]) + 1)
-            parts.append(rp.residuals(sim, idx))
+            parts.append(rp.fit_residuals(sim, idx))
         r = np.concatenate(parts)
-        return np.where(np.isfinite(r), r, _DIVERGED)
+        # A replay that diverged (non-finite) or nearly so (a trial far outside the physics: 1e147 was
+        # seen) is as wrong as can be; bounded, it leaves the trust region's arithmetic finite.
+        return np.where(np.isfinite(r), np.clip(r, -_DIVERGED, _DIVERGED), _DIVERGED)
 
     u = np.zeros(len(params))
     jac = None
@@ -296,28 +301,43 @@ def fit_model(
 
     ``starts`` gives starting values by key, e.g. the nominal fit's nuisance
     values, so that a candidate starts from the optimum it nests. Each of
-    ``other_starts`` is tried too, and the fit with the least squared error on
-    the compared samples is kept (the folds start from it).
+    ``other_starts`` is tried too (a start the record points to, see
+    :mod:`.identify`; the objective may hold several basins). On one record
+    the fit with the least cross-validated error is kept (the held-out
+    blocks decide, ties by the squared error on the compared samples); on
+    several records the one with the least squared error (each start's
+    leave-one-record-out refits would multiply the cost by the records).
     """
     if isinstance(problem, Replay):
         problem = Problem([problem])
+    solved = [_solve_from(problem, tuple(causes), start) for start in (starts or {}, *other_starts)]
+    if problem.joint or len(solved) == 1:
+        return _cross_validate(problem, tuple(causes), *min(solved, key=lambda s: float(s[3] @ s[3])))
+    fits = [_cross_validate(problem, tuple(causes), *s) for s in solved]
+    return min(zip(fits, solved), key=lambda fs: (fs[0].error_cv, float(fs[1][3] @ fs[1][3])))[0]
+
+
+def _solve_from(problem: Problem, causes: tuple[str, ...], start: dict[str, float]):
+    """The least-squares fit of ``causes`` from ``start``: its parameters, values, Jacobian and residuals."""
+    objective = [rp.eval_idx for rp in problem.replays]
+    params = _params(problem, causes, start)
+    zeros = [p for p in params if p.key.split("@")[0] == "theta_offset" and p.record is not None]
+    zeros = [p for p in zeros if p.key not in start and "angle_offset" not in causes]
+    if zeros:
+        # Encoder zeros without a start: fit the rest with the zeros held first, so that the
+        # zeros cannot absorb a wrong swing in the first iterations, then free them.
+        movable = [p for p in params if p not in zeros]
+        held, _, _ = _solve(problem, movable, objective, {p.key: p.start for p in zeros}, staged=True)
+        params = _params(problem, causes, dict(start, **held))
+    values, jac, r = _solve(problem, params, objective, {}, staged=not zeros)
+    return params, values, jac, r
+
+
+def _cross_validate(
+    problem: Problem, causes: tuple[str, ...], params: list[_Param], values: dict[str, float], jac, r: np.ndarray
+) -> Fit:
+    """The :class:`Fit` of a solved model: its uncertainties, out-of-fold predictions and block errors."""
     rps = problem.replays
-    best = None
-    objective = [rp.eval_idx for rp in rps]
-    for start in (starts or {}, *other_starts):
-        params = _params(problem, tuple(causes), start)
-        zeros = [p for p in params if p.key.split("@")[0] == "theta_offset" and p.record is not None]
-        zeros = [p for p in zeros if p.key not in start and "angle_offset" not in causes]
-        if zeros:
-            # Encoder zeros without a start: fit the rest with the zeros held first, so that the
-            # zeros cannot absorb a wrong swing in the first iterations, then free them.
-            movable = [p for p in params if p not in zeros]
-            held, _, _ = _solve(problem, movable, objective, {p.key: p.start for p in zeros}, staged=True)
-            params = _params(problem, tuple(causes), dict(start, **held))
-        values, jac, r = _solve(problem, params, objective, {}, staged=not zeros)
-        if best is None or float(r @ r) < float(best[3] @ best[3]):
-            best = params, values, jac, r
-    params, values, jac, r = best
     stderr = _jacobian_stderr(jac, r, params) if params else {}
     n = r.size
     bic = n * math.log(max(float(r @ r), 1e-300) / n) + len(params) * math.log(n)
@@ -372,12 +392,16 @@ def fit_model(
         # An encoder zero read off resting (constant) angles is known to the reading's quantisation
         # at best, however well the fit reproduces the level.
         stderr[p.key] = max(stderr[p.key], _resting_level_sigma(problem, p.key))
-    block_mse, record_cv, sq_all = [], [], []
+    block_mse, block_chi2, record_cv, sq_all = [], [], [], []
     for i, rp in enumerate(rps):
-        # Compared samples of a diverged prediction are NaN: infinite error there.
-        sq = np.mean([oof[i][c] ** 2 for c in rp.channels], axis=0)
+        # Compared samples of a diverged prediction are NaN: infinite error there (and a prediction far
+        # off overflows its square to inf, the same verdict).
+        with np.errstate(over="ignore"):
+            sq = np.mean([oof[i][c] ** 2 for c in rp.channels], axis=0)
         sq[rp.eval_idx] = np.where(np.isfinite(sq[rp.eval_idx]), sq[rp.eval_idx], math.inf)
+        chi2 = _whitened_square(rp, oof[i])
         block_mse += [float(np.mean(sq[b])) for b in rp.blocks]
+        block_chi2 += [float(np.mean(chi2[b])) for b in rp.blocks]
         record_cv.append(float(math.sqrt(np.mean(sq[rp.eval_idx]))))
         sq_all.append(sq[rp.eval_idx])
     sq_all = np.concatenate(sq_all)
@@ -385,8 +409,28 @@ def fit_model(
     fit_sq = np.concatenate([rp.residuals(sims[i], rp.eval_idx) ** 2 for i, rp in enumerate(rps)])
     error_fit = float(math.sqrt(np.mean(fit_sq))) if np.all(np.isfinite(fit_sq)) else math.inf
     return Fit(
-        tuple(causes), values, stderr, error_fit, error_cv, fold_values, np.array(block_mse), record_cv, bic, sims, oof
-    )
+        causes, values, stderr, error_fit, error_cv, fold_values, np.array(block_mse), record_cv, bic, sims, oof,
+        np.array(block_chi2),
+    )  # fmt: skip
+
+
+def _whitened_square(rp: Replay, oof: dict[str, np.ndarray]) -> np.ndarray:
+    """Per sample, the mean over a record's noisy channels of the squared out-of-fold residual in units
+    of that channel's noise (inf where a prediction diverged; NaN where nothing is compared).
+
+    The pooled error weights a channel by its spread, so a channel that barely moves (a small
+    pendulum's angle, a few encoder steps) dominates it with its own noise, and a look-alike that
+    misses the other channel by many times that channel's noise looks as good as the truth.
+    Channels without noise of their own (constant, or exact) are left out.
+    """
+    noisy = [c for c in rp.channels if rp.noise[c] > 0 and c not in EXACT_CHANNELS]
+    if not noisy:
+        return np.full(rp.n, np.nan)
+    with np.errstate(over="ignore"):  # a prediction far off: an infinite error, as a diverged one
+        chi2 = np.mean([(oof[c] * rp.scale[c] / rp.noise[c]) ** 2 for c in noisy], axis=0)
+    compared = rp.moving.copy()
+    chi2[compared] = np.where(np.isfinite(chi2[compared]), chi2[compared], math.inf)
+    return chi2
 
 
 def _resting_level_sigma(problem: Problem, key: str) -> float:

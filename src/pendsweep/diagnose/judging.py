@@ -33,8 +33,8 @@ def _score(problem: Problem, fit: Fit, cause: str) -> float:
         moved[k] = v + 1e-4 * max(abs(v), eff.scale)
     r0, r1 = [], []
     for i, rp in enumerate(problem.replays):
-        r0.append(rp.residuals(rp.simulate(problem.record_values(base, i)), rp.eval_idx))
-        r1.append(rp.residuals(rp.simulate(problem.record_values(moved, i)), rp.eval_idx))
+        r0.append(rp.fit_residuals(rp.simulate(problem.record_values(base, i)), rp.eval_idx))
+        r1.append(rp.fit_residuals(rp.simulate(problem.record_values(moved, i)), rp.eval_idx))
     r0, r1 = np.concatenate(r0), np.concatenate(r1)
     j = r1 - r0
     if not (np.all(np.isfinite(j)) and np.all(np.isfinite(r0))) or j @ j == 0:
@@ -47,16 +47,21 @@ def _rank(fit: Fit) -> tuple[float, float, str]:
     return fit.error_cv, fit.bic, fit.cause or ""
 
 
-def block_test(before: Fit, after: Fit) -> float:
+def block_test(before: Fit, after: Fit, whitened: bool = False) -> float:
     """One-sided p value that ``after`` predicts the held-out blocks better than ``before``.
 
     Wilcoxon signed-rank test on the blocks' differences of out-of-fold mean
-    squared error; zero differences (e.g. blocks where both models are exact)
-    are split between the signs instead of being dropped or breaking the test.
+    squared error (``whitened``: in units of each channel's noise, see
+    :func:`.fitting._whitened_square`); zero differences (e.g. blocks where
+    both models are exact) are split between the signs instead of being
+    dropped or breaking the test.
     """
-    fb, fa = np.isfinite(before.block_mse), np.isfinite(after.block_mse)
+    b, a = (before.block_chi2, after.block_chi2) if whitened else (before.block_mse, after.block_mse)
+    if b is None or a is None or np.all(np.isnan(b)):
+        return 1.0
+    fb, fa = np.isfinite(b), np.isfinite(a)
     with np.errstate(invalid="ignore"):
-        d = before.block_mse - after.block_mse
+        d = b - a
     if not np.all(fb & fa):
         # A model that diverges on a block is the worse one there (largest rank); both diverging: a tie.
         big = 2.0 * float(np.max(np.abs(d[fb & fa]), initial=1.0))

@@ -9,6 +9,7 @@ from ..plotting import legend_right
 from .chain import PartsDiagnosis
 from .effects import EFFECTS, PART_OF, model_file, split_values
 from .report import write_report
+from .thresholds import DERIVATIVE_RATIO
 from .transfer import MODELS, UNITS, TransferIdentification
 
 #: Seconds of record shown in the transfer figure's close-up.
@@ -110,6 +111,13 @@ def write_parts_report(diag: PartsDiagnosis, outdir: Path, source: str) -> list[
                 f"Not distinguishable on this record from `{cause}` ({name} = {value:.5g} {UNITS[name].split(' ')[0]}, the "
                 "nominal transport delay kept): the command holds too little above the forcing to tell them apart."
                 for cause, (name, value) in verdict["tied_with"].items()
+            ),
+            *(
+                f"Measured {column} against the motion that drives the specimen's replay: rms difference "
+                f"{check['rms_difference']:.3g}, {check['ratio_to_noise']:.3g} x its noise variance"
+                + (" (the rig did not move as modelled: flagged)" if check["ratio_to_noise"] > DERIVATIVE_RATIO else "")
+                + "."
+                for column, check in verdict.get("measured_derivatives", {}).items()
             ),
             "",
             "| model | "

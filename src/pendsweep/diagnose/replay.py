@@ -43,7 +43,7 @@ import math
 
 import numpy as np
 from scipy.ndimage import maximum_filter1d, minimum_filter1d
-from scipy.signal import savgol_filter
+from scipy.signal import savgol_coeffs, savgol_filter
 
 from ..data import Record
 from ..errors import ConfigError
@@ -72,6 +72,21 @@ SMOOTH_WINDOW = 0.05
 #: actuator's position there follows commands sent before the record began.
 COMMAND_HISTORY = 0.05
 NUISANCE = ("theta_init", "thetadot_init")
+#: Gauss-Newton passes fitting each segment's initial state of a forced record (see
+#: Replay._fit_segment_states).
+STATE_PASSES = 1
+#: Each segment's state and LVDT offset are fitted on its first this many seconds [s]: about one period
+#: of the oscillator and half of the pendulum's, so that they are the segment's start as the data near
+#: it say (as the smoothed estimate was, more precisely) and absorb no model error later in the segment;
+#: fitted on whole segments, a fold that holds out a segment's first block would extrapolate the free
+#: response backwards from samples seconds later.
+STATE_WINDOW = 0.5
+#: A forced record's channel whose spread is below this multiple of its noise is weighed in the fits by
+#: its noise instead (Replay.fit_weight).
+FIT_SNR = 100.0
+#: Finite-difference steps of a segment's state: y [m], y' [m/s], theta [rad], theta' [rad/s]
+#: (the replay is linear in such small changes; far above float64's resolution of the channels).
+STATE_STEPS = np.array([1e-7, 1e-6, 1e-7, 1e-6])
 
 
 def noise_std(x: np.ndarray) -> float:
@@ -84,11 +99,55 @@ def noise_std(x: np.ndarray) -> float:
     return float(np.std(np.diff(x, 3)) / math.sqrt(20.0))
 
 
+def rounding_std(x: np.ndarray, window: int) -> float:
+    """One-sigma rounding error of a quantised channel over the record [unit of x].
+
+    A reading rounded to steps ``q`` errs uniformly within half a step while the
+    signal crosses levels (variance ``q^2 / 12``), however slowly it moves; third
+    differences see that error only at the steps themselves, so
+    :func:`noise_std` misses it on a slow signal (a small pendulum swing read in
+    a few encoder steps: 4e-5 rad against q / sqrt(12) = 3.8e-4). The share of
+    samples whose ``window`` holds a change of level weights it: a reading that
+    stays on one level is exact for a model that holds it. ``q`` is the
+    smallest change between samples (an unquantised channel's is tiny, and so
+    is its rounding error).
+    """
+    steps = np.abs(np.diff(x))
+    if not np.any(steps > 0):
+        return 0.0
+    quantum = float(steps[steps > 0].min())
+    changing = maximum_filter1d(x, window) != minimum_filter1d(x, window)
+    return quantum / math.sqrt(12.0) * math.sqrt(float(np.mean(changing)))
+
+
+def smooth_window(n: int, dt: float) -> int:
+    """Samples of the Savitzky-Golay window of :func:`smoothed` for ``n`` samples of step ``dt`` (odd)."""
+    w = max(5, int(round(SMOOTH_WINDOW / dt)) | 1)
+    return min(w, n - 1 + n % 2)
+
+
 def smoothed(x: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """Cubic Savitzky-Golay estimates of ``x`` and its derivative [unit/s]."""
-    w = max(5, int(round(SMOOTH_WINDOW / dt)) | 1)
-    w = min(w, len(x) - 1 + len(x) % 2)
+    w = smooth_window(len(x), dt)
     return savgol_filter(x, w, 3), savgol_filter(x, w, 3, deriv=1, delta=dt)
+
+
+def smoothing_gain(n: int, dt: float, at: np.ndarray) -> np.ndarray:
+    """How much white noise of unit variance moves :func:`smoothed`'s estimates at samples ``at``:
+    (len(at), 2) standard deviations of the value [-] and of the derivative [1/s].
+
+    The norms of the filter's coefficients, the one-sided ones within half a window of the record's
+    ends (``savgol_filter``'s ``interp`` mode fits the first and last windows): a state estimated at a
+    record's first sample is several times worse than one inside it.
+    """
+    w = smooth_window(n, dt)
+    half = w // 2
+    out = np.empty((len(at), 2))
+    for k, i in enumerate(at):
+        pos = half if half <= i < n - half else (i if i < half else w - (n - i))
+        for d in (0, 1):
+            out[k, d] = float(np.linalg.norm(savgol_coeffs(w, 3, deriv=d, delta=dt, pos=pos, use="dot")))
+    return out
 
 
 def midpoint_values(f: np.ndarray) -> np.ndarray:
@@ -113,6 +172,8 @@ class Replay:
 
     #: Nuisance parameters fitted with every model of this kind (free decays: the release state).
     nuisance: tuple[str, ...] = ()
+    #: Weight of each channel's normalised residual in the least squares (default 1: see :meth:`fit_residuals`).
+    fit_weight: dict[str, float] = {}
     #: Their scales for the fit [their units], and bounds (default: none).
     nuisance_scale: dict[str, float] = {}
     nuisance_bounds: dict[str, tuple[float, float]] = {}
@@ -156,6 +217,28 @@ class Replay:
             self.force = record.channel("Fe")
             self.force_half = midpoint_values(self.force)
             self.initial_guess = {}
+            if self.kind == "forced" and "y" in self.noise and "y" not in self.constant:
+                # The replay is driven by the recorded force, whose sensor noise moves the replayed y:
+                # white noise of variance s^2 per sample through the oscillator gives y a variance of
+                # s^2 dt / (2 K C) (the integral of |H|^2 over frequency).
+                force_var = noise_std(self.force) ** 2 * self.dt / (2.0 * self.nominal["K"] * self.nominal["C"])
+                self.noise["y"] = math.sqrt(self.noise["y"] ** 2 + force_var)
+            if self.kind == "forced":
+                # A channel that barely moves is weighed by its noise, not its spread: a small pendulum's
+                # angle, read in a few encoder steps, has a spread only 10 to 30 times its noise (the LVDT's
+                # is 350 times), and weighted by its spread it bent the oscillator's fit to that noise (a
+                # stiffness 0.6 % off, y left at 100 x its noise variance). Channels moving more than
+                # FIT_SNR times their noise keep the pooled error's weight: there the angle's model-form
+                # error, not its noise, dominates, and weighted by its noise it bent the oscillator instead.
+                self.fit_weight = {
+                    c: min(1.0, self.scale[c] / (FIT_SNR * self.noise[c])) if self.noise[c] > 0 else 1.0
+                    for c in self.channels
+                }
+            # Each channel's weight in the fit of the segments' states and offsets (its noise), and the
+            # smoothed starting states' own uncertainty, their prior in that fit.
+            self._state_sigma = {c: self.noise[c] or self.scale[c] for c in self.channels}
+            gain = smoothing_gain(self.n, self.dt, starts)
+            self._prior_sigma = np.concatenate([gain * self._state_sigma.get(c, 0.0) for c in ("y", "theta")], axis=1)
         self.fits_initial_state = self.kind == "free_decay"
         # Free swings integrate with steps of at most MAX_STEP: the held sgn of the
         # Coulomb term makes the model depend on the step.
@@ -189,7 +272,11 @@ class Replay:
             c: (abs(float(self.meas[c][0])) or 1.0) if c in self.constant else float(np.std(self.meas[c]))
             for c in self.channels
         }
-        self.noise = {c: 0.0 if c in self.constant else noise_std(self.meas[c]) for c in self.channels}
+        window = max(5, int(round(MOTION_WINDOW / self.dt)))
+        self.noise = {
+            c: 0.0 if c in self.constant else max(noise_std(self.meas[c]), rounding_std(self.meas[c], window))
+            for c in self.channels
+        }
         # The pendulum rests through the record: its replay starts at its equilibrium (simulate)
         # and its constant angle locates the encoder zero to REST_LEVEL_SIGMA.
         self.rests = "theta" in self.constant
@@ -211,8 +298,10 @@ class Replay:
         """Simulated measured channels for the samples ``[0, stop)``.
 
         ``values`` maps vocabulary parameters (missing ones take the nominal)
-        and, for free decays, ``theta_init``/``thetadot_init``.
-        Non-finite output marks a diverged simulation.
+        and, for free decays, ``theta_init``/``thetadot_init``. On forced
+        records each segment's initial state and LVDT offset are nuisances
+        fitted with the model (:meth:`_fit_segment_states`). Non-finite output
+        marks a diverged simulation.
         """
         stop = self.n if stop is None else stop
         v = dict(self.nominal, **self.initial_guess)
@@ -226,14 +315,20 @@ class Replay:
             return {"theta": out[:, 0] + theta_offset}
         if self.kind == "substructured":
             return self._loop(v, p, theta_offset, stop)
-        sim = np.empty((stop, 4))
-        for k, (i0, i1) in enumerate(self.segments):
-            if i0 >= stop:
-                break
-            i1 = min(i1, stop)
-            state = self._segment_start(k, theta_offset)
-            driven_trace(state, p, self.force[i0:i1], self.force_half[i0 : i1 - 1], v["gain"], self.dt, sim[i0:i1])
-        return {"y": sim[:, 0], "theta": sim[:, 2] + theta_offset}
+        starts = np.array([self._segment_start(k, theta_offset) for k in range(len(self.segments))])
+
+        def driven(states: np.ndarray) -> dict[str, np.ndarray]:
+            sim = np.empty((stop, 4))
+            for k, (i0, i1) in enumerate(self.segments):
+                if i0 >= stop:
+                    break
+                i1 = min(i1, stop)
+                driven_trace(
+                    states[k], p, self.force[i0:i1], self.force_half[i0 : i1 - 1], v["gain"], self.dt, sim[i0:i1]
+                )
+            return {"y": sim[:, 0], "theta": sim[:, 2] + theta_offset}
+
+        return self._fit_segment_states(driven, starts, stop)
 
     def _segment_start(self, k: int, theta_offset: float) -> np.ndarray:
         """Initial state of segment ``k`` (y, y', theta, theta') for the trial encoder zero ``theta_offset``.
@@ -247,6 +342,106 @@ class Replay:
         state = self.states0[k].copy()
         state[2:] = 0.0 if self.rests else (state[2] - theta_offset, state[3])
         return state
+
+    def _fit_segment_states(self, replay, states: np.ndarray, stop: int) -> dict[str, np.ndarray]:
+        """``replay(states)`` with each segment's initial state and LVDT offset fitted to its first samples.
+
+        The smoothed estimate of a segment's starting state carries the
+        sensors' error: a Savitzky-Golay slope of a quantised angle is off by
+        about ``q / window`` (0.02 rad/s for Table III's encoder at 500 Hz), and
+        at a record's first sample the one-sided window is worse. A lightly
+        damped pendulum carries that error through its segment, so even the
+        true model missed a small swing by tens of times the encoder's noise.
+        The LVDT's offset and slow drift, and the quasi-static response to the
+        load cell's drift in the recorded ``Fe``, shift y by a few tens of
+        micrometres. Both are nuisances of every model (variable projection):
+        :data:`STATE_PASSES` Gauss-Newton passes, each segment on its own
+        samples, with the residuals weighted by each channel's noise (a
+        likelihood: scaled by the channels' spreads instead, a pendulum that
+        barely moves would bend the oscillator's start to fit its angle). The
+        Jacobian takes one perturbed replay per state component (the segments
+        are independent, so one replay moves them all); the offset enters
+        linearly. A segment keeps its pass only where that lowers its weighted
+        squared error (a chaotic segment's linearisation can fail). A pendulum
+        that rests through the record keeps its exact equilibrium
+        (:meth:`_segment_start`).
+        """
+        sim = replay(states)
+        prior_mean = states.copy()
+        window = int(round(STATE_WINDOW / self.dt))
+        near_start = np.zeros(self.n, dtype=bool)
+        for i0, i1 in self.segments:
+            near_start[i0 : min(i0 + window, i1, stop)] = True
+        rows = np.flatnonzero(self.moving & near_start)
+        channels = [c for c in self.channels if c not in self.constant]
+        free = [0, 1] if self.rests else [0, 1, 2, 3]
+        fits_offset = "y" in channels
+        n_seg = len(self.segments)
+        # Row ranges of each segment in ``rows`` (sorted sample indices).
+        bounds = np.searchsorted(rows, [i0 for i0, _ in self.segments] + [stop])
+        lengths = np.diff(bounds)
+        sigma = np.array([self._state_sigma[c] for c in channels])[:, None]
+        meas = np.stack([self.meas[c][rows] for c in channels])
+        offsets = np.zeros(n_seg)
+
+        def weighted(sim_: dict[str, np.ndarray], offsets_: np.ndarray) -> np.ndarray:
+            """Residuals in units of each channel's noise: (channels, rows)."""
+            out = np.stack([sim_[c][rows] for c in channels]) - meas
+            if fits_offset:
+                out[channels.index("y")] += np.repeat(offsets_, lengths)
+            return out / sigma
+
+        prior_weight = np.zeros_like(states)
+        prior_weight[:, free] = 1.0 / np.maximum(self._prior_sigma[:, free], 1e-300) ** 2
+
+        def objective(r: np.ndarray, states_: np.ndarray) -> np.ndarray:
+            """Each segment's squared residuals plus its states' prior term (inf where not finite)."""
+            per_row = np.sum(r * r, axis=0)
+            sums = np.add.reduceat(per_row, bounds[:-1]) if len(per_row) else np.zeros(n_seg)
+            sums = np.where(lengths > 0, sums, 0.0) + np.sum(prior_weight * (states_ - prior_mean) ** 2, axis=1)
+            return np.where(np.isfinite(sums), sums, np.inf)
+
+        for _ in range(STATE_PASSES):
+            r = weighted(sim, offsets)
+            if not np.all(np.isfinite(r)):
+                break
+            columns = []
+            for j in free:
+                moved = states.copy()
+                moved[:, j] += STATE_STEPS[j]
+                columns.append((weighted(replay(moved), offsets) - r) / STATE_STEPS[j])
+            if fits_offset:
+                unit = np.zeros_like(r)
+                unit[channels.index("y")] = 1.0 / sigma[channels.index("y"), 0]
+                columns.append(unit)
+            jac = np.stack(columns, axis=-1)  # (channels, rows, parameters)
+            state_step, offset_step = np.zeros_like(states), np.zeros(n_seg)
+            for k in np.flatnonzero(lengths):
+                jk, rk = jac[:, bounds[k] : bounds[k + 1]], r[:, bounds[k] : bounds[k + 1]]
+                if not np.all(np.isfinite(jk)):
+                    continue
+                # The smoothed start is the prior (maximum a posteriori): the data move a state only as far
+                # as they determine it. Without it, a fold that holds out a segment's first block fits the
+                # start on later samples alone and extrapolates the free response backwards.
+                prior = np.zeros(jk.shape[-1])
+                prior[: len(free)] = prior_weight[k, free]
+                normal = np.einsum("crp,crq->pq", jk, jk) + np.diag(prior)
+                gradient = np.einsum("crp,cr->p", jk, rk)
+                gradient[: len(free)] += prior[: len(free)] * (states[k, free] - prior_mean[k, free])
+                step = np.linalg.lstsq(normal, -gradient, rcond=1e-12)[0]
+                state_step[k, free] = step[: len(free)]
+                offset_step[k] = step[-1] if fits_offset else 0.0
+            trial = replay(states + state_step)
+            after = objective(weighted(trial, offsets + offset_step), states + state_step)
+            keep = (after < objective(r, states)) & (lengths > 0)
+            if not keep.any():
+                break
+            states = np.where(keep[:, None], states + state_step, states)
+            offsets = np.where(keep, offsets + offset_step, offsets)
+            sim = trial if keep.all() else replay(states)
+        if fits_offset and offsets.any():
+            sim = dict(sim, y=sim["y"] + np.repeat(offsets, [i1 - i0 for i0, i1 in self.segments])[: len(sim["y"])])
+        return sim
 
     def _loop(self, v: dict[str, float], p: np.ndarray, theta_offset: float, stop: int) -> dict[str, np.ndarray]:
         sim = np.empty((stop, 4))
@@ -312,6 +507,12 @@ class Replay:
     def residuals(self, sim: dict[str, np.ndarray], idx: np.ndarray | slice) -> np.ndarray:
         """Normalised residuals (sim - measured) / std(measured) at ``idx``, channels stacked."""
         r = [(sim[c][idx] - self.meas[c][idx]) / self.scale[c] for c in self.channels]
+        return np.concatenate(r)
+
+    def fit_residuals(self, sim: dict[str, np.ndarray], idx: np.ndarray | slice) -> np.ndarray:
+        """The residuals the least squares minimise: :meth:`residuals`, each channel weighted by
+        :attr:`fit_weight` (1 but for a forced record's channel that barely moves)."""
+        r = [self.fit_weight.get(c, 1.0) * (sim[c][idx] - self.meas[c][idx]) / self.scale[c] for c in self.channels]
         return np.concatenate(r)
 
     def nrmse(self, sim: dict[str, np.ndarray], idx: np.ndarray | slice | None = None) -> float:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import cmath
 import json
 import math
 from pathlib import Path
@@ -12,6 +13,7 @@ from ..data import UNITS
 from ..plotting import legend_right
 from .effects import EFFECTS, model_file, split_values
 from .fit import Diagnosis
+from .identify import SEPARABLE_VIF
 from .signatures import backbone, cross_correlation, extrema, residual_spectrum, summarize
 from .thresholds import CHANNEL_RATIO, P_VALUE, UNEXPLAINED_RATIO
 
@@ -41,6 +43,7 @@ def _figures(diag: Diagnosis, outdir: Path) -> list[Path]:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import MaxNLocator
 
     rp = diag.replay
     t = rp.t
@@ -124,6 +127,7 @@ def _figures(diag: Diagnosis, outdir: Path) -> list[Path]:
         bb = backbone(ex)
         ax2.plot(bb.amplitude, bb.frequency, style, ms=3, lw=0.8, label=label)
     ax.set_xlabel("amplitude [rad]")
+    ax.xaxis.set_major_locator(MaxNLocator(nbins=4))  # a narrow panel: amplitudes like 0.0002 rad would touch
     ax.set_ylabel("decrement per half cycle [rad]")
     ax.set_title("decay: constant = Coulomb, proportional = viscous", fontsize=9)
     ax.legend(fontsize=7)
@@ -271,12 +275,15 @@ def write_report(diag: Diagnosis, outdir: Path, source: str) -> list[Path]:
             )
     tied = diag.tied_with()
     if tied:
+        reasons = diag.tie_reasons()
         lines += [
             "",
             f"Not distinguishable on this record from: {', '.join(f'`{t}`' for t in tied)} (the verdict does "
-            f"not beat them on the held-out blocks, signed-rank p >= {P_VALUE:g}). A record with more "
-            "amplitude range or a second forcing tone separates them.",
+            f"not beat them on the held-out blocks, signed-rank p >= {P_VALUE:g}, in the pooled error nor in "
+            "units of each channel's noise).",
         ]
+        lines += [f"- `{t}`: {reasons[t]}." for t in tied if t in reasons]
+    lines += _identification_lines(diag)
     lines += [
         "",
         "## Candidates (sorted by cross-validated NRMSE)",
@@ -315,6 +322,42 @@ def write_report(diag: Diagnosis, outdir: Path, source: str) -> list[Path]:
     report = outdir / "report.md"
     report.write_text("\n".join(lines) + "\n")
     return [report] + files
+
+
+def _identification_lines(diag: Diagnosis) -> list[str]:
+    """The report's section on what the records hold for the oscillator (:mod:`.identify`), if any."""
+    found = [(rp.record.name, i) for rp, i in zip(diag.problem.replays, diag.identified) if i is not None]
+    if not found:
+        return []
+    lines = [
+        "",
+        "## What the record holds for the oscillator (before any replay)",
+        "",
+        "Starts of the oscillator's fits, from the force's tones (or sweep), the response at each and any "
+        "transient (`identify.py`); each parameter fitted alone with the others nominal, and K, M, C together:",
+        "",
+        "| record | content | K alone [N/m] | M alone [kg] | K, M, C together | K-M inflation | K-k3 inflation |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for name, i in found:
+        together = ", ".join(f"{k} = {_fmt(i.estimates[k])} ± {_fmt(i.stderr[k])}" for k in ("K", "M", "C"))
+        lines.append(
+            f"| `{name}` | {i.content()} | {_fmt(i.alone['K'])} | {_fmt(i.alone['M'])} | {together} | "
+            f"{_fmt(i.inflation['M'])} | {_fmt(i.inflation['k3'])} |"
+        )
+    lines += [
+        "",
+        "Receptance at each tone (|Y/F| [m/N], phase [deg]): "
+        + "; ".join(
+            f"{t.frequency:.3g} Hz: {_fmt(abs(t.receptance))}, {math.degrees(cmath.phase(t.receptance)):.1f}"
+            for _, i in found
+            for t in i.tones
+        ),
+        "",
+        f"A variance inflation of {SEPARABLE_VIF:.0e} or more means the two columns are multiples of each other on "
+        "this record (one frequency in steady state): the record cannot separate the pair, whatever the fits say.",
+    ]
+    return lines
 
 
 def plot_envelopes(curves: dict[str, tuple[np.ndarray, np.ndarray]], path: Path) -> Path:

@@ -32,10 +32,17 @@ def _friction(thd, b1, b2, b3):
 
 
 @nb.njit(cache=True)
-def _tones(t, amps, freqs):
+def _force(t, amps, freqs, sweep):
+    """The external force at ``t`` [N]: tones ``amps[i] sin(2 pi freqs[i] t)`` and a linear sweep.
+
+    ``sweep`` is ``(amplitude [N], f0 [Hz], f1 [Hz], duration [s])``: ``a sin(2 pi (f0 t + (f1 - f0)
+    t^2 / (2 T)))`` for ``0 <= t <= T`` (the frequency rises from f0 to f1), none when the amplitude is 0.
+    """
     f = 0.0
     for i in range(amps.shape[0]):
         f += amps[i] * math.sin(2.0 * math.pi * freqs[i] * t)
+    if sweep[0] != 0.0 and t <= sweep[3]:
+        f += sweep[0] * math.sin(2.0 * math.pi * (sweep[1] * t + 0.5 * (sweep[2] - sweep[1]) * t * t / sweep[3]))
     return f
 
 
@@ -110,7 +117,7 @@ def _rig_piece(x, xd, th, thd, t0, hp, cmd, delay, dt, hold, m, l, b, g, order, 
 
 @nb.njit(cache=True)
 def rig_truth(
-    z, m, l, b, g, M1, C1, K, k3, M2, C2, gain, gain_fs, amps, freqs, dt, nsub, n0, n,
+    z, m, l, b, g, M1, C1, K, k3, M2, C2, gain, gain_fs, amps, freqs, sweep, dt, nsub, n0, n,
     delay, order, wn, zeta, servo_gain, fs_noise, drift_c2, hold, predictor, load_cell_tau, integrator,
 ):  # fmt: skip
     """A substructuring test: controller at ``dt``, rig RK4 ``nsub`` steps per tick.
@@ -126,9 +133,11 @@ def rig_truth(
     delay ``delay`` and a servo of ``order`` 1 or 2 (natural or corner
     frequency ``wn`` [rad/s], damping ratio ``zeta``, static gain ``servo_gain``).
 
-    Returns (n, 6): x [m], theta [rad], Fs measured [N], y_cmd [m], Fe [N], y* [m].
+    Returns (n, 8): x [m], theta [rad], Fs measured [N], y_cmd [m], Fe [N], y* [m], and the platform's
+    velocity x' [m/s] and acceleration x'' [m/s^2] at the tick (what a velocity sensor and an
+    accelerometer sampled there read; a held command's switch at the tick counts with its new value).
     """
-    out = np.empty((n, 6))
+    out = np.empty((n, 8))
     ys, yds = 0.0, 0.0
     ys_prev = 0.0
     history = np.zeros(max(predictor.shape[0], 1))
@@ -144,13 +153,16 @@ def rig_truth(
         c2 = C2 * (1.0 + drift_c2 * max(t - n0 * dt, 0.0) / total)
         if k >= n0:
             out[k - n0, 0], out[k - n0, 1], out[k - n0, 2] = x, th, fs_meas
-            out[k - n0, 3], out[k - n0, 4], out[k - n0, 5] = cmd[k], _tones(t, amps, freqs), ys
+            out[k - n0, 3], out[k - n0, 4], out[k - n0, 5] = cmd[k], _force(t, amps, freqs, sweep), ys
+            u = _command_input(cmd, (t - delay) / dt, hold)
+            out[k - n0, 6] = xd
+            out[k - n0, 7] = _rig_rhs(x, xd, th, thd, u, m, l, b, g, order, wn, zeta, servo_gain)[1]
         if k == nt - 1:
             break
         # Controller: Eq. (3) over the tick with the measured force held.
-        f0 = gain * _tones(t, amps, freqs) - fs_meas
-        fh = gain * _tones(t + 0.5 * dt, amps, freqs) - fs_meas
-        f1 = gain * _tones(t + dt, amps, freqs) - fs_meas
+        f0 = gain * _force(t, amps, freqs, sweep) - fs_meas
+        fh = gain * _force(t + 0.5 * dt, amps, freqs, sweep) - fs_meas
+        f1 = gain * _force(t + dt, amps, freqs, sweep) - fs_meas
         if integrator == 1:
             # Explicit central difference with the velocity centred (the classic hybrid-test integrator).
             if k == 0:

@@ -38,7 +38,7 @@ benchmark check.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numba as nb
 import numpy as np
@@ -48,7 +48,7 @@ from ..data import Record
 from ..errors import ConfigError
 from ..params import FIG9_PO, TABLE_IV, ModelParams
 from .effects import ACTUATOR_CAUSES, EFFECTS, nominal_values
-from .servo_rig import SERVO_DELAY, SERVO_WN, SERVO_ZETA, Rig, _friction, _tones, predictor_weights, rig_truth
+from .servo_rig import SERVO_DELAY, SERVO_WN, SERVO_ZETA, Rig, _force, _friction, predictor_weights, rig_truth
 
 #: Largest truth integration step [s].
 FINE_STEP = 1e-4
@@ -59,6 +59,8 @@ TEST_SEEDS = range(1_000_000, 1_100_000)
 ENCODER_STEP = 0.0013
 LVDT_STEP, LVDT_NOISE = 1e-5, 2e-5
 FORCE_NOISE = 0.1
+#: Platform velocity sensor [m/s] and accelerometer [m/s^2] rms noise (records with ``derivatives``).
+VELOCITY_NOISE, ACCELEROMETER_NOISE = 2e-4, 0.02
 #: Random-walk drift over a record: LVDT [m], load cell [N] (one sigma at the end).
 LVDT_DRIFT, FORCE_DRIFT = 2e-5, 0.05
 #: Effects outside the vocabulary: name -> (kinds, meaning).
@@ -119,8 +121,9 @@ def free_decay_truth(th, thd, m, l, b, g, h, nsub, n, drift):
 
 
 @nb.njit(cache=True)
-def forced_truth(z, m, l, b, g, M, C, c3, K, k3, gain, amps, freqs, h, nsub, n0, n, drift_c, drift_k):
-    """Eqs. (1)-(2) under ``gain * sum amps sin(2 pi freqs t)``; ``n0`` transient samples skipped.
+def forced_truth(z, m, l, b, g, M, C, c3, K, k3, gain, amps, freqs, sweep, h, nsub, n0, n, drift_c, drift_k):
+    """Eqs. (1)-(2) under ``gain`` times the tones and sweep of :func:`.servo_rig._force`; ``n0`` transient
+    samples skipped.
 
     ``drift_c``/``drift_k``: C/K grow linearly to (1 + drift) x over the recorded part.
     Returns (n, 2): y [m], theta [rad] at the recorded samples.
@@ -137,9 +140,9 @@ def forced_truth(z, m, l, b, g, M, C, c3, K, k3, gain, amps, freqs, h, nsub, n0,
             t = (i * nsub + j) * h
             frac = max(t - n0 * nsub * h, 0.0) / total
             Ci, Ki = C * (1.0 + drift_c * frac), K * (1.0 + drift_k * frac)
-            f1 = gain * _tones(t, amps, freqs)
-            f2 = gain * _tones(t + 0.5 * h, amps, freqs)
-            f4 = gain * _tones(t + h, amps, freqs)
+            f1 = gain * _force(t, amps, freqs, sweep)
+            f2 = gain * _force(t + 0.5 * h, amps, freqs, sweep)
+            f4 = gain * _force(t + h, amps, freqs, sweep)
             a1, q1 = _coupled_acc(y, yd, th, thd, f1, m, l, b, g, M, Ci, c3, Ki, k3)
             y2, yd2, th2, thd2 = y + 0.5 * h * yd, yd + 0.5 * h * a1, th + 0.5 * h * thd, thd + 0.5 * h * q1
             a2, q2 = _coupled_acc(y2, yd2, th2, thd2, f2, m, l, b, g, M, Ci, c3, Ki, k3)
@@ -182,6 +185,12 @@ class Case:
         Seconds simulated before recording (forced, substructured).
     rig : Rig
         The substructuring rig and controller (substructured records).
+    sweep : tuple of float
+        A linear sweep ``(amplitude [N], f0 [Hz], f1 [Hz])`` over the whole simulated time (transient
+        and record) added to the tones; empty: none.
+    derivatives : bool
+        Substructured records: also the platform's measured velocity ``ydot`` and acceleration ``yddot``
+        (sampled at the tick, with :data:`VELOCITY_NOISE` and :data:`ACCELEROMETER_NOISE`).
     """
 
     kind: str
@@ -194,6 +203,8 @@ class Case:
     tones: tuple = ((5.0, 2.2), (2.0, 1.3))
     transient: float = 20.0
     rig: Rig = Rig()
+    sweep: tuple = ()
+    derivatives: bool = False
 
     @property
     def label(self) -> str:
@@ -239,6 +250,11 @@ def generate(case: Case) -> Record:
     amps = np.array([a for a, _ in case.tones], dtype=np.float64)
     freqs = np.array([f for _, f in case.tones], dtype=np.float64)
     n0 = int(round(case.transient * case.rate))
+    sweep = np.array([*case.sweep, (n0 + n - 1) * dt] if case.sweep else [0.0, 0.0, 0.0, 1.0])
+    # The frequency an actuator is judged at: the main tone's, else the sweep's middle.
+    forcing = {"alpha": nominal.alpha, "fe": nominal.fe}
+    if not case.tones:
+        forcing = {"alpha": float(case.sweep[0]), "fe": 0.5 * float(case.sweep[1] + case.sweep[2])}
     z = np.array([0.0, 0.0, case.theta_init, 0.0])
     if kind == "forced":
         rec = forced_truth(
@@ -255,6 +271,7 @@ def generate(case: Case) -> Record:
             truth["gain"],
             amps,
             freqs,
+            sweep,
             h,
             nsub,
             n0,
@@ -262,7 +279,7 @@ def generate(case: Case) -> Record:
             ex.get("damping_drift", 0.0),
             ex.get("stiffness_drift", 0.0),
         )
-        fe = _tones_array(t + n0 * dt, amps, freqs)
+        fe = np.array([_force(ti, amps, freqs, sweep) for ti in t + n0 * dt])
         data = pd.DataFrame(
             {
                 "t": t,
@@ -271,13 +288,7 @@ def generate(case: Case) -> Record:
                 "Fe": fe + rng.normal(0.0, FORCE_NOISE, n) + _drift(n, FORCE_DRIFT, rng),
             }
         )
-        return Record(
-            data,
-            kind,
-            nominal,
-            forcing={"alpha": nominal.alpha, "fe": nominal.fe},
-            name=f"testbench:{case.label}:{case.seed}",
-        )
+        return Record(data, kind, nominal, forcing=forcing, name=f"testbench:{case.label}:{case.seed}")
     # Substructured: the numerical model's M1, C1 are code (nominal split); M, C effects move them.
     M1 = truth["M"] - nominal.M2
     C1 = truth["C"] - nominal.C2
@@ -292,7 +303,7 @@ def generate(case: Case) -> Record:
     fs_noise = rng.normal(0.0, FORCE_NOISE, n0 + n) + np.concatenate([np.zeros(n0), _drift(n, FORCE_DRIFT, rng)])
     rec = rig_truth(
         z, m, l, b, g, M1, C1, truth["K"], truth["k3"], truth["M2"], truth["C2"], truth["gain"], truth["gain_Fs"],
-        amps, freqs, dt, nsub, n0, n, delay, rig.servo_order, wn, rig.servo_zeta, servo_gain, fs_noise,
+        amps, freqs, sweep, dt, nsub, n0, n, delay, rig.servo_order, wn, rig.servo_zeta, servo_gain, fs_noise,
         ex.get("damping_drift", 0.0), rig.hold, predictor_weights(rig.lead, dt), rig.load_cell_tau, rig.integrator,
     )  # fmt: skip
     data = pd.DataFrame(
@@ -305,6 +316,9 @@ def generate(case: Case) -> Record:
             "Fs": rec[:, 2],
         }
     )
+    if case.derivatives:
+        data["ydot"] = rec[:, 6] + rng.normal(0.0, VELOCITY_NOISE, n)
+        data["yddot"] = rec[:, 7] + rng.normal(0.0, ACCELEROMETER_NOISE, n)
     actuator = {}
     if rig.describes_servo:
         actuator = {"model": "second_order" if rig.servo_order == 2 else "first_order", "gain": 1.0,
@@ -316,14 +330,10 @@ def generate(case: Case) -> Record:
         kind,
         nominal,
         tau=tau_nominal,
-        forcing={"alpha": nominal.alpha, "fe": nominal.fe},
+        forcing=forcing,
         name=f"testbench:{case.label}:{case.seed}",
         actuator=actuator,
     )
-
-
-def _tones_array(t: np.ndarray, amps: np.ndarray, freqs: np.ndarray) -> np.ndarray:
-    return sum(a * np.sin(2.0 * math.pi * f * t) for a, f in zip(amps, freqs))
 
 
 def _drift(n: int, final_sigma: float, rng: np.random.Generator) -> np.ndarray:
@@ -565,3 +575,82 @@ def generate_rig_case(seed: int, category: str | None = None) -> tuple[str, Case
         except ConfigError:
             continue
     raise ConfigError(f"seed {seed}: no stable servo-rig test in {RIG_ATTEMPTS} draws")
+
+
+# -- look-alike records (issue 34): the oscillator's stiffness, mass or hardening under forcing that separates them ----
+
+#: The oscillator's look-alike causes: a stiffer or softer spring, a heavier or lighter mass, a hardening spring.
+LOOK_ALIKE_CAUSES = ("oscillator_stiffness", "oscillator_mass", "spring_hardening")
+#: Forcings of the look-alike records and their shares: two tones either side of the oscillator's
+#: resonance (the true natural frequency may lie between the nominal one and a tone), a sweep through
+#: it, one tone from rest (a start-up transient at the natural frequency), one tone in steady state.
+LOOK_ALIKE_FORCINGS = {"two_tones": 0.3, "sweep": 0.3, "start_up": 0.25, "one_tone": 0.15}
+#: The forcings whose records can separate the look-alikes: one tone in steady state cannot (only
+#: ``K - M omega^2`` is seen, and a cubic spring acts as a constant stiffness at a constant amplitude).
+SEPARATING_FORCINGS = ("two_tones", "sweep", "start_up")
+
+
+def draw_look_alike_case(seed: int, kind: str, attempt: int = 0) -> tuple[str, Case]:
+    """A random look-alike record of ``kind`` (forced or substructured): ``(forcing, case)``.
+
+    Random: the cause (:data:`LOOK_ALIKE_CAUSES`) and its size within :data:`RANGES` (a coded change of
+    the numerical model in a substructured test), the forcing (:data:`LOOK_ALIKE_FORCINGS`), the rate
+    (500 Hz or 2 kHz), the pendulum's initial angle (0.05-0.5 rad: small swings too), and for
+    substructured records the rig and controller (:func:`draw_rig`). ``attempt`` draws another case for
+    the same seed (:func:`generate_look_alike_case`).
+    """
+    if kind not in ("forced", "substructured"):
+        raise ConfigError(f"look-alike records are forced or substructured, not {kind!r}")
+    rng = np.random.default_rng([seed, 34, attempt])
+    cause = str(rng.choice(LOOK_ALIKE_CAUSES))
+    forcing = str(rng.choice(list(LOOK_ALIKE_FORCINGS), p=list(LOOK_ALIKE_FORCINGS.values())))
+    rate = float(rng.choice([500.0, 2000.0]))
+    value = truth_value(kind, cause, float(rng.uniform()), rate)
+    theta_init = float(rng.uniform(0.05, 0.5))
+    tones: tuple = ((5.0, 2.2),)
+    sweep: tuple = ()
+    transient = 20.0
+    if forcing == "two_tones":
+        tones = ((5.0, float(rng.uniform(1.8, 2.1))), (float(rng.uniform(2.0, 5.0)), float(rng.uniform(2.3, 2.8))))
+    elif forcing == "sweep":
+        tones, sweep, transient = (), (5.0, float(rng.uniform(1.4, 1.8)), float(rng.uniform(2.6, 3.2))), 4.0
+    elif forcing == "start_up":
+        transient = 0.0
+    rig = draw_rig(rng) if kind == "substructured" else Rig()
+    duration = DURATION[kind] * (0.5 if rate > 1000.0 else 1.0)
+    case = Case(kind, {cause: value}, {}, rate, duration, int(seed), theta_init, tones, transient, rig=rig, sweep=sweep)
+    return forcing, case
+
+
+def generate_look_alike_case(seed: int, kind: str) -> tuple[str, Case, Record]:
+    """The look-alike record of ``seed``: ``(forcing, case, record)``; an unstable servo-rig test is drawn again
+    (up to :data:`RIG_ATTEMPTS` times, as :func:`generate_rig_case`)."""
+    for attempt in range(RIG_ATTEMPTS):
+        forcing, case = draw_look_alike_case(seed, kind, attempt)
+        try:
+            return forcing, case, generate(case)
+        except ConfigError:
+            continue
+    raise ConfigError(f"seed {seed}: no stable look-alike test in {RIG_ATTEMPTS} draws")
+
+
+def generate_rig_session(seed: int, records: int = 3) -> tuple[str, list[Case], list[Record]]:
+    """Several records of one servo rig, one controller and one hidden effect (the rig of
+    :func:`generate_rig_case`), each with its own second tone, initial angle and noise: what a lab
+    diagnoses jointly. Returns ``(category, cases, records)``."""
+    category, case, record = generate_rig_case(seed)
+    cases, out = [case], [record]
+    rng = np.random.default_rng([seed, 35])
+    for _ in range(RIG_ATTEMPTS * records):
+        if len(out) == records:
+            return category, cases, out
+        tones = ((5.0, 2.2), (float(rng.uniform(1.5, 3.0)), float(rng.uniform(1.1, 1.6))))
+        variant = replace(case, seed=int(rng.integers(2**31)), tones=tones, theta_init=float(rng.uniform(0.2, 0.5)))
+        try:
+            out.append(generate(variant))
+        except ConfigError:  # this tone made the test unstable: draw another
+            continue
+        cases.append(variant)
+    if len(out) < records:
+        raise ConfigError(f"seed {seed}: {len(out)} stable records of one rig in {RIG_ATTEMPTS * records} draws")
+    return category, cases, out

@@ -19,8 +19,11 @@ SECOND_ROUND_RATIO = 2.0
 PARTNERS = 3
 #: Second rounds start from this many best single causes.
 BEAM = 2
-#: Cross-validated squared error above this multiple of the floor^2 is "unexplained" (per kind).
-UNEXPLAINED_RATIO = {"free_decay": 3.0, "forced": 30.0, "substructured": 4.5, "physical": 4.5, "numerical": 4.5}
+#: Cross-validated squared error above this multiple of the floor^2 is "unexplained" (per kind). Forced
+#: records: 4.5, 1.6 x the largest ratio (2.8) of the clean and correctly named single-effect and pair
+#: records of calibration range A since each segment's start and LVDT offset are fitted with the model
+#: (issue 34); it was 30 while the smoothed starts left the true model at up to 20 x the floor^2.
+UNEXPLAINED_RATIO = {"free_decay": 3.0, "forced": 4.5, "substructured": 4.5, "physical": 4.5, "numerical": 4.5}
 #: One sensor channel's cross-validated mean square above this multiple of its own noise variance
 #: is a structured residual too (kinds whose pooled floor one noisy channel dominates).
 CHANNEL_RATIO = {"substructured": 60.0, "physical": 120.0}
@@ -34,9 +37,10 @@ IMPLAUSIBLE_FACTOR = 1000.0
 #: tests use) to the stated one, by record kind. On the calibration range A (49 right single
 #: verdicts) the median |estimate - truth| / sigma was 1.23 (free decay), 2.32 (forced) and 0.44
 #: (substructured); each factor brings it to 0.674, the median |z| of a normal error, and none is
-#: below 1 (the substructured jackknife is already wide). Held-out check: the diagnosis
-#: benchmark's ``uncertainty_coverage`` on range B.
-UNCERTAINTY_CALIBRATION = {"free_decay": 1.83, "forced": 3.44, "substructured": 1.0, "physical": 1.0, "numerical": 1.0}
+#: below 1 (the substructured jackknife is already wide). Forced records recalibrated with the
+#: segment starts fitted (issue 34): median 1.41 on the 16 right forced singles, factor 2.10 (was
+#: 3.44). Held-out check: the diagnosis benchmark's ``uncertainty_coverage`` on range B.
+UNCERTAINTY_CALIBRATION = {"free_decay": 1.83, "forced": 2.10, "substructured": 1.0, "physical": 1.0, "numerical": 1.0}
 #: Smallest relative change of a parameter that is named, per record kind: below it a significant
 #: change is the model-form error of a rig's conventions, not a fault. The physical part's platform
 #: mass: on the calibration range A, a command held over each tick into a first-order servo made the
@@ -49,3 +53,8 @@ UNCERTAINTY_CALIBRATION = {"free_decay": 1.83, "forced": 3.44, "substructured": 
 #: tag of y* as a 0.05 % mass; a Newmark controller as a 0.4 % damping), so those records no longer
 #: test them; the benchmark's effects are 4 % (K) to 20 % (C) and more.
 RELEVANCE = {"physical": {"M2": 0.10}, "numerical": {"M": 0.02, "K": 0.02, "C": 0.05, "gain": 0.04}}
+#: A measured platform velocity or acceleration (``ydot``, ``yddot``) whose mean-square difference from the
+#: motion that drives the specimen's replay exceeds this multiple of its noise variance flags the record
+#: (the specimen was replayed under a motion the rig did not make). The physical part's channel ratio:
+#: the same test of a structured residual against a sensor's own noise.
+DERIVATIVE_RATIO = CHANNEL_RATIO["physical"]

@@ -501,6 +501,34 @@ class TransferIdentification:
     def effective_delay(self) -> tuple[float, float]:
         return self.best.effective_delay(self.frequency)
 
+    def compare_derivatives(self, measured: dict[str, np.ndarray]) -> dict[str, dict[str, float]]:
+        """The motion that drives the specimen's replay (:attr:`motion_fit`) against a measured platform
+        velocity ``ydot`` [m/s] and acceleration ``yddot`` [m/s^2], where the record has them.
+
+        Per column, on the compared samples: the rms difference, the column's noise (third
+        differences), their mean-square ratio and the correlation of the difference with the model.
+        The LVDT sees displacement only; a servo's acceleration, which the pendulum and the load cell
+        feel, is the model's guess until an accelerometer says otherwise (a command held over each
+        tick into a fast servo jerks the platform at every tick, which no smooth model has).
+        """
+        fit = self.motion_fit
+        motion = self.problem.motion(fit.actuator, 1, fit.initial)
+        idx = self.problem.idx
+        out = {}
+        for column, k, extra in (("ydot", 1, fit.drift), ("yddot", 2, 0.0)):
+            if column not in measured:
+                continue
+            model = motion[idx, k] + extra
+            diff = model - measured[column][idx]
+            noise = noise_std(measured[column])
+            out[column] = {
+                "rms_difference": float(np.sqrt(np.mean(diff * diff))),
+                "noise": noise,
+                "ratio_to_noise": float(np.mean(diff * diff) / noise**2) if noise > 0 else math.inf,
+                "correlation_with_model": float(np.corrcoef(diff, model)[0, 1]) if np.std(diff) > 0 else 0.0,
+            }
+        return out
+
     def to_json(self) -> dict[str, Any]:
         f = self.frequency
         delay, delay_sigma = self.effective_delay()
