@@ -234,7 +234,7 @@ def test_parts_carry_the_hash_and_the_config_is_stored_once(tmp_path):
     for part in _parts(out):
         part_meta = read_metadata(part)
         assert (
-            set(part_meta) == {"config_hash", "final_states", "row_group_units"}
+            set(part_meta) == {"config_hash", "final_states", "units"}
             and part_meta["config_hash"] == meta["config_hash"]
         )
     # A part of another configuration among them is refused, not merged.
@@ -402,13 +402,12 @@ def test_worker_exception_reaches_the_caller():
 def test_without_flock_the_pid_inside_decides(tmp_path, monkeypatch):
     """On a filesystem without flock, a live holder on this host still refuses and a dead one is taken over."""
     import errno
-
-    from pendsweep import results
+    import fcntl
 
     def no_flock(fd, op):
         raise OSError(errno.EOPNOTSUPP, "Operation not supported")
 
-    monkeypatch.setattr(results.fcntl, "flock", no_flock)
+    monkeypatch.setattr(fcntl, "flock", no_flock)
     out = tmp_path / "nfs.parquet"
     lock_file = out.with_name(out.name + ".lock")
     sleeper = subprocess.Popen(["sleep", "30"])

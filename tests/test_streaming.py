@@ -71,13 +71,13 @@ RUNS = {
 
 @pytest.mark.parametrize("kind", sorted(RUNS))
 def test_streamed_final_file_equals_the_in_memory_merge(tmp_path, kind, monkeypatch):
-    """Every unit its own part (checkpoint 0 s): the row groups are streamed. A long checkpoint keeps every
-    unit in memory until the end, which writes the final file from one sorted table as before."""
+    """Every unit its own part (checkpoint 0 s): the parts are streamed. A long checkpoint keeps every
+    unit in memory until the end, which writes the final file straight from there."""
     import pendsweep.results as results
 
     streamed_plans = []
-    plan = results.plan_row_groups
-    monkeypatch.setattr(results, "plan_row_groups", lambda *a: streamed_plans.append(plan(*a)) or streamed_plans[-1])
+    plan = results.plan_spans
+    monkeypatch.setattr(results, "plan_spans", lambda *a: streamed_plans.append(plan(*a)) or streamed_plans[-1])
     returned = RUNS[kind](tmp_path / "streamed.parquet", 0.0)
     assert streamed_plans and streamed_plans[0] is not None  # the stream ran, no fallback
     reference = RUNS[kind](tmp_path / "memory.parquet", 3600.0)

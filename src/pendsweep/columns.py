@@ -60,6 +60,49 @@ def table(columns: dict[str, np.ndarray | pa.Array]) -> pa.Table:
 PYTHON_RANK_ROWS = 65536
 
 
+#: Longest text ranked in numpy by :func:`_short_text_ranks` [bytes]: a sweep's ``direction`` has 4.
+SHORT_TEXT_BYTES = 16
+
+
+def _short_text_ranks(values: pa.Array) -> np.ndarray | None:
+    """Sort ranks of a column of short texts, in numpy (None where it does not apply: long texts, many rows, NULs).
+
+    Each text, zero-padded to the longest (to 8 bytes: one big-endian
+    integer), becomes a fixed-width byte string; those sort as the texts do
+    (UTF-8 bytes sort in code-point order, and trailing zeros are padding as
+    long as no text holds a NUL). A sweep's 18,000 ``direction`` texts take
+    a fraction of a millisecond, against 6 ms through Python.
+    """
+    n = len(values)
+    if n > PYTHON_RANK_ROWS:
+        return None
+    wide = pa.types.is_large_string(values.type)
+    offsets = np.frombuffer(values.buffers()[1], np.int64 if wide else np.int32, count=values.offset + n + 1)
+    offsets = offsets[values.offset :].astype(np.int64)
+    lengths = np.diff(offsets)
+    width = int(lengths.max()) if n else 0
+    if width == 0:
+        return np.zeros(n, np.int64)
+    if width > SHORT_TEXT_BYTES:
+        return None
+    data = np.frombuffer(values.buffers()[2], np.uint8)
+    if not data[offsets[0] : offsets[-1]].all():  # a NUL inside a text
+        return None
+    longest = width
+    width = 8 if width <= 8 else width  # up to 8 bytes: one big-endian integer, which sorts as the bytes do
+    if (lengths == longest).all():  # texts of one length (``none``): their bytes are the rows already
+        padded = np.zeros((n, width), np.uint8)
+        padded[:, :longest] = data[offsets[0] : offsets[-1]].reshape(n, longest)
+    else:
+        column_ = np.arange(width)
+        gathered = data[np.minimum(offsets[:-1, None] + column_, len(data) - 1)]
+        padded = np.where(column_ < lengths[:, None], gathered, 0).astype(np.uint8)
+    fixed = padded.view(">u8" if width == 8 else f"S{width}").ravel()
+    if (fixed == fixed[0]).all():
+        return np.zeros(n, np.int64)
+    return np.unique(fixed, return_inverse=True)[1].astype(np.int64).ravel()
+
+
 def to_numpy(values: pa.Array | pa.ChunkedArray) -> np.ndarray:
     """A numeric or bool Arrow column (no nulls) as a new numpy array; a string column as sort ranks.
 
@@ -72,6 +115,9 @@ def to_numpy(values: pa.Array | pa.ChunkedArray) -> np.ndarray:
     if values.null_count:
         raise ValueError(f"column of {values.type} has {values.null_count} nulls")
     if pa.types.is_string(values.type) or pa.types.is_large_string(values.type):
+        ranks = _short_text_ranks(values)
+        if ranks is not None:
+            return ranks
         if len(values) > PYTHON_RANK_ROWS:
             encoded = values.dictionary_encode()
             words = encoded.dictionary.to_pylist()
@@ -88,6 +134,17 @@ def to_numpy(values: pa.Array | pa.ChunkedArray) -> np.ndarray:
     if not n:
         return np.empty(0, dtype)
     return np.frombuffer(values.buffers()[1], dtype, count=offset + n)[offset:].copy()
+
+
+def concat_rows(tables: list[pa.Table]) -> pa.Table:
+    """Tables concatenated; types unified (all-null or string columns from pandas frames) (empty: no columns)."""
+    tables = [t for t in tables if t.num_columns]
+    if not tables:
+        return pa.table({})
+    first = tables[0].schema
+    if all(t.schema.equals(first) for t in tables[1:]):  # the usual case: ten times faster than promoting
+        return pa.concat_tables(tables)
+    return pa.concat_tables(tables, promote_options="permissive")
 
 
 def read_parquet(path: Path) -> pa.Table:
@@ -121,6 +178,23 @@ def sorted_key_order(table_: pa.Table, keys: list[str]) -> tuple[np.ndarray, boo
     for c in ordered:
         same &= c[1:] == c[:-1]
     return order, not same.any()
+
+
+def strictly_sorted(table_: pa.Table, keys: list[str]) -> bool:
+    """Whether the rows of ``table_`` are in ascending order by ``keys`` and no two agree on every key.
+
+    The usual case of a merge, checked without sorting: the key codes and
+    two flags a row, not the order and sorted copies of :func:`sorted_key_order`.
+    """
+    if table_.num_rows < 2:
+        return True
+    ahead = np.zeros(table_.num_rows - 1, dtype=bool)  # the row is after the one before it on an earlier key
+    tied = np.ones(table_.num_rows - 1, dtype=bool)  # the two agree on every key so far
+    for k in keys:
+        c = to_numpy(table_[k])
+        ahead |= tied & (c[1:] > c[:-1])
+        tied &= c[1:] == c[:-1]
+    return bool(ahead.all())
 
 
 def has_duplicate_rows(table_: pa.Table, keys: list[str]) -> bool:

@@ -2,30 +2,34 @@
 
 One process at a time writes an output: :class:`OutputLock` (``<output>.lock``,
 owner pid and host inside) is taken before any work, and a second process is
-refused at once. A run writes its finished units into ``<output>.parts/`` as
-small parquet files (one row group per unit), each written to a temporary
-name, fsynced and atomically renamed, so a killed process leaves only whole
-parts behind; the run's
-configuration is stored once in ``<output>.parts/config.json`` and every part
-carries its hash. Rerunning the same configuration checks every part's hash,
-skips the units they hold and goes on; when every unit is done the parts are
-merged into ``<output>`` (again by atomic rename) and the folder is removed.
-The merge streams one row group at a time (:mod:`pendsweep.merge`), so
+refused at once. A run buffers its finished units and writes them into
+``<output>.parts/`` as parquet parts of many units each (one row group, up to
+about :data:`pendsweep.merge.ROW_GROUP_BYTES` or ``flush_points`` units), at
+the latest ``flush_seconds`` after the oldest of them finished; each part is
+written to a temporary name, fsynced and atomically renamed, so a killed
+process leaves only whole parts behind. With the first part the run's
+configuration is stored once in ``<output>.parts/config.json``, and every
+part carries its hash. Rerunning the same configuration checks every part's
+hash, skips the units they hold and goes on; when every unit is done the
+parts and the units still buffered are merged into ``<output>`` (again by
+atomic rename) and the folder is removed. A run that ends within one
+checkpoint interval writes no part: its final file is its only write.
+The merge streams a span of units at a time (:mod:`pendsweep.merge`), so
 neither the run nor its merge holds all rows: memory stays within the
-store's buffer (at most ``flush_points`` units) and the row-key columns.
+store's buffer and the part it wrote last (a part's worth each), a row
+group of a part and one of the final file, and the row-key columns.
 The final file carries the fully resolved configuration as JSON in its
 parquet key-value metadata under ``pendsweep``.
 """
 
 from __future__ import annotations
 
-import fcntl
 import hashlib
 import json
 import logging
+import math
 import os
 import shutil
-import socket
 import tempfile
 import threading
 import time
@@ -36,9 +40,21 @@ from typing import TYPE_CHECKING, Any
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from .columns import has_duplicate_rows, read_parquet, sort_rows
+from .columns import concat_rows, has_duplicate_rows, sort_rows
 from .errors import ResultsError
-from .merge import plan_row_groups, unified_schema, write_row_groups
+from .merge import (
+    ROW_GROUP_BYTES,
+    PartSource,
+    TableSource,
+    Units,
+    plan_spans,
+    row_bytes,
+    unified_schema,
+    units_table,
+    write_options,
+    write_spans,
+)
+from .output_lock import UMASK, OutputLock, OutputLocked  # noqa: F401 (OutputLocked: raised through here)
 
 if TYPE_CHECKING:  # rows are pyarrow Tables here; frames only where they are asked for
     import pandas as pd
@@ -48,15 +64,6 @@ METADATA_KEY = b"pendsweep"
 CONFIG_FILE = "config.json"
 
 _log = logging.getLogger("pendsweep")
-
-
-class OutputLocked(ResultsError):
-    """Another process is writing the same output (the message names it; exit status 2)."""
-
-
-# Read once at import: os.umask can only be read by setting it, which is not thread-safe.
-_UMASK = os.umask(0o022)
-os.umask(_UMASK)
 
 
 def config_hash(config: dict[str, Any]) -> str:
@@ -99,7 +106,7 @@ def _atomic_write(path: Path, write: Callable[[Any], None]) -> None:
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
         # mkstemp creates 0600 files; results get the permissions of any normal file.
-        os.fchmod(fd, 0o666 & ~_UMASK)
+        os.fchmod(fd, 0o666 & ~UMASK)
         with os.fdopen(fd, "wb") as fh:
             write(fh)
             fh.flush()
@@ -116,9 +123,9 @@ def _atomic_write(path: Path, write: Callable[[Any], None]) -> None:
         os.close(dir_fd)
 
 
-def atomic_write_table(table: pa.Table, path: Path) -> None:
-    """Write ``table`` to ``path`` as parquet so that readers see all of it or nothing."""
-    _atomic_write(path, lambda fh: pq.write_table(table, fh))
+def atomic_write_table(table: pa.Table, path: Path, **options: Any) -> None:
+    """Write ``table`` to ``path`` as parquet so that readers see all of it or nothing (``options``: the writer's)."""
+    _atomic_write(path, lambda fh: pq.write_table(table, fh, **options))
 
 
 def as_table(rows: pa.Table | pd.DataFrame) -> pa.Table:
@@ -126,12 +133,6 @@ def as_table(rows: pa.Table | pd.DataFrame) -> pa.Table:
     if isinstance(rows, pa.Table):
         return rows
     return pa.Table.from_pandas(rows, preserve_index=False).replace_schema_metadata(None)
-
-
-def concat_rows(tables: list[pa.Table]) -> pa.Table:
-    """Tables concatenated; types unified (all-null or string columns from pandas frames) (empty: no columns)."""
-    tables = [t for t in tables if t.num_columns]
-    return pa.concat_tables(tables, promote_options="permissive") if tables else pa.table({})
 
 
 def schema_with_metadata(schema: pa.Schema, metadata: dict[str, Any]) -> pa.Schema:
@@ -174,115 +175,19 @@ def _part_metadata(part: pq.ParquetFile) -> dict[str, Any]:
     return meta
 
 
-class OutputLock:
-    """Exclusive right to write one output, held from before any work until the run ends.
-
-    The lock is ``<output>.lock``: an advisory ``flock`` on it (released by
-    the kernel when its process dies, however it dies) plus the holder's
-    pid, host and start time written inside, so a refusal can name the
-    holder. A lock file whose flock is free is stale (its process died):
-    the next run takes it over and says so.
-
-    Raises
-    ------
-    OutputLocked
-        When another process (or another store in this process) holds it.
-    """
-
-    def __init__(self, output: Path) -> None:
-        self.path = Path(output).with_name(Path(output).name + ".lock")
-        self._fd: int | None = None
-        self.previous: dict[str, Any] | None = None  # the stale holder taken over, if any
-        while self._fd is None:
-            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o666 & ~_UMASK)
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except BlockingIOError:
-                held = True
-            except OSError as exc:  # a filesystem without flock: judge by the pid written inside
-                _log.warning(f"no file locking on {str(self.path.parent)!r} ({exc.strerror}); going by the pid inside")
-                held = _alive_elsewhere(_read_holder(fd))
-            else:
-                held = False
-            if held:
-                holder = _read_holder(fd)
-                os.close(fd)
-                raise OutputLocked(
-                    f"{str(output)!r} is being written by {_describe(holder)} (lock {str(self.path)!r}); "
-                    "wait for it to finish or choose another output path"
-                )
-            # The holder may have released and removed the file between our open and flock:
-            # only a lock on the file that is still at the path counts.
-            try:
-                same = os.fstat(fd).st_ino == os.stat(self.path).st_ino
-            except FileNotFoundError:
-                same = False
-            if not same:
-                os.close(fd)
-                continue
-            self.previous = _read_holder(fd)
-            me = {"pid": os.getpid(), "host": socket.gethostname(), "started": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
-            os.ftruncate(fd, 0)
-            os.pwrite(fd, json.dumps(me).encode(), 0)
-            os.fsync(fd)
-            self._fd = fd
-        if self.previous:
-            _log.warning(f"took over the stale lock of {_describe(self.previous)} on {str(output)!r}")
-
-    def release(self) -> None:
-        """Remove the lock file and let go (idempotent)."""
-        if self._fd is None:
-            return
-        try:
-            os.unlink(self.path)
-        except FileNotFoundError:
-            pass
-        os.close(self._fd)
-        self._fd = None
-
-
-def _read_holder(fd: int) -> dict[str, Any]:
-    try:
-        holder = json.loads(os.pread(fd, 4096, 0).decode() or "{}")
-    except (UnicodeDecodeError, json.JSONDecodeError):
-        return {}
-    return holder if isinstance(holder, dict) else {}
-
-
-def _alive_elsewhere(holder: dict[str, Any]) -> bool:
-    """Whether a lock's holder may still run: another live pid on this host, or any pid on another host."""
-    pid = holder.get("pid")
-    if not isinstance(pid, int) or pid == os.getpid():
-        return False
-    if holder.get("host") != socket.gethostname():
-        return True  # cannot be checked from here
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
-
-
-def _describe(holder: dict[str, Any]) -> str:
-    if not holder:
-        return "another process"
-    return f"pid {holder.get('pid', '?')} on host {holder.get('host', '?')} (since {holder.get('started', '?')})"
-
-
 class ResultStore:
     """Buffered, crash-safe, single-writer store for one run's results.
 
     Layout while a run is unfinished: ``<output>.lock`` (:class:`OutputLock`),
     ``<output>.parts/config.json`` (the run's metadata, written once) and
-    ``<output>.parts/part-NNNNNN-PID.parquet`` files, each holding one row
-    group per unit and carrying only the configuration hash, the final states
-    of its units and the unit of each row group (``row_group_units``). When
-    every unit is done, :meth:`finalize` merges the parts into ``<output>``
-    (metadata and all final states included) and removes the folder; a run that finds a
-    finished ``<output>`` of its configuration removes any folder left by a
-    kill after the final rename.
+    ``<output>.parts/part-NNNNNN-PID.parquet`` files, each holding the rows of
+    the units buffered since the previous part as one row group, and
+    carrying only the configuration hash, the final states of its units and
+    its units with their row counts in row order (``units``). When every
+    unit is done, :meth:`finalize` merges the parts and the units still
+    buffered into ``<output>`` (metadata and all final states included) and
+    removes the folder; a run that finds a finished ``<output>`` of its
+    configuration removes any folder left by a kill after the final rename.
 
     Parameters
     ----------
@@ -297,11 +202,13 @@ class ResultStore:
         final file is sorted by them.
     overwrite : bool
         Discard any previous file or parts at ``path``.
-    flush_points, flush_seconds : int, float
-        Persist the buffer once it holds this many units, and at the latest
-        ``flush_seconds`` after the last write: a timer writes a finished unit
-        even while the next one is still running (each part costs two fsyncs,
-        so a fast sweep writes about one a second).
+    flush_points, flush_seconds, flush_bytes : int, float, int
+        Write the buffer as a part once it holds ``flush_points`` units or
+        about ``flush_bytes`` bytes of rows, and at the latest
+        ``flush_seconds`` after the oldest unit in it was added (0: every
+        unit at once): a writer thread writes it even while the next unit is
+        still running. A unit waits at most ``flush_seconds`` in memory, and
+        timed parts are at least that far apart (each costs two fsyncs).
 
     Raises
     ------
@@ -320,6 +227,7 @@ class ResultStore:
         overwrite: bool = False,
         flush_points: int = 1024,
         flush_seconds: float = 1.0,
+        flush_bytes: int = ROW_GROUP_BYTES,
     ) -> None:
         self.path = Path(path)
         self.metadata = metadata
@@ -328,15 +236,32 @@ class ResultStore:
         self.parts = self.path.with_name(self.path.name + ".parts")
         self.flush_points = flush_points
         self.flush_seconds = flush_seconds
+        self.flush_bytes = flush_bytes
         self._buffer: list[tuple[str, pa.Table]] = []  # (unit key, its rows), in the order they finished
         self._buffer_states: dict[str, list[float]] = {}
-        self._last_flush = time.monotonic()
-        # The scan adds units from its own thread; the timer writes from another.
+        self._buffer_rows = 0
+        self._flush_rows: int | None = None  # rows of about flush_bytes, from the first unit's row size
+        self._deadline = 0.0  # when the oldest buffered unit must be on disk (time.monotonic)
+        # The mutex guards the buffer (the scan adds units from its thread); the write lock, taken first,
+        # makes parts one at a time, outside the mutex, on the writer thread or wherever the buffer is full.
         self._mutex = threading.Lock()
-        self._timer: threading.Timer | None = None
+        self._write_lock = threading.Lock()
+        self._due = threading.Condition(self._mutex)  # wakes the writer: a first unit buffered, or the end
+        self._writer: threading.Thread | None = None  # started when the first unit has to wait
         self._timer_error: BaseException | None = None
         self._closed = False
-        self._part_counter = 0  # index of the next part; 0 while no part is on disk
+        self._part_counter = 0  # index of the next part
+        self._config_stored = False  # whether <output>.parts/config.json holds this run's metadata
+        # The part written last, kept (one part's rows at most) so that the merge need not read it back,
+        # and the units of a part being written (path None: none), which the merge need not wait for.
+        self._last_part: tuple[Path | None, TableSource | None, dict[str, list[float]]] = (None, None, {})
+        self._writing: tuple[Path | None, list[tuple[str, pa.Table]], dict[str, list[float]]] = (None, [], {})
+        #: What this store did, for tests and benchmarks: seconds it held up the scan's thread (adding units,
+        #: parts written there, the final merge), CPU seconds of parts the writer thread wrote, parts and
+        #: their rows (written by either), the final file's row groups and the parts' row groups the merge read.
+        self.counts: dict[str, float] = dict.fromkeys(
+            ("scan_thread_seconds", "timer_cpu_seconds", "parts", "part_rows", "final_row_groups", "merge_reads"), 0
+        )
         check_writable(self.path)
         self.lock = OutputLock(self.path)
         try:
@@ -366,11 +291,22 @@ class ResultStore:
                 self._check_hash(stored.get("config_hash") if isinstance(stored, dict) else None, config_file)
                 if isinstance(stored.get("created"), str):  # a resumed run keeps the time it was first started
                     self.metadata = dict(self.metadata, created=stored["created"])
-        self.parts.mkdir(exist_ok=True)
-        text = json.dumps(self.metadata, sort_keys=True).encode()
-        _atomic_write(config_file, lambda fh: fh.write(text))
+                self._config_stored = True
         indices = [int(f.name.split("-")[1]) for f in self.parts.glob("part-*.parquet")]
         self._part_counter = max(indices, default=-1) + 1
+
+    def _store_config(self) -> None:
+        """Write ``config.json`` before the first part (the caller holds the write lock).
+
+        Not before: a run that ends within its first checkpoint interval
+        writes no part, and so needs neither the folder nor the two fsyncs.
+        """
+        if self._config_stored:
+            return
+        self.parts.mkdir(exist_ok=True)
+        text = json.dumps(self.metadata, sort_keys=True).encode()
+        _atomic_write(self.parts / CONFIG_FILE, lambda fh: fh.write(text))
+        self._config_stored = True
 
     def _check_hash(self, have: Any, where: Path) -> None:
         if have != self.config_hash:
@@ -433,147 +369,221 @@ class ResultStore:
 
     # -- writing --------------------------------------------------------------
     def add(self, rows: pa.Table | pd.DataFrame, key: str, final_state: list[float]) -> None:
-        """Buffer one finished unit of work; persist it now or by ``flush_seconds`` after the last write."""
+        """Buffer one finished unit of work; persist it within ``flush_seconds`` (at once when the buffer is full)."""
+        started = time.perf_counter()
         table = as_table(rows)
         with self._mutex:
             self._raise_timer_error()
+            now = time.monotonic()
+            first = not self._buffer
+            if first:
+                self._deadline = now + self.flush_seconds
             self._buffer.append((key, table))
             self._buffer_states[key] = final_state
-            wait = self.flush_seconds - (time.monotonic() - self._last_flush)
-            if len(self._buffer) >= self.flush_points or wait <= 0:
-                self._write_buffer()
-            elif self._timer is None:
-                self._timer = threading.Timer(wait, self._timed_flush)
-                self._timer.daemon = True
-                self._timer.start()
+            if table.num_rows:
+                self._buffer_rows += table.num_rows
+                if self._flush_rows is None:
+                    self._flush_rows = max(1, int(self.flush_bytes / row_bytes(table)))
+            full = len(self._buffer) >= self.flush_points or self._buffer_rows >= (self._flush_rows or math.inf)
+            due = full or now >= self._deadline
+            if not due and first:
+                if self._writer is None or not self._writer.is_alive():  # (it ends after a failed write)
+                    self._writer = threading.Thread(target=self._write_when_due, name="pendsweep-store", daemon=True)
+                    self._writer.start()
+                else:
+                    self._due.notify()
+        if due:
+            self._write_buffer()
+        self.counts["scan_thread_seconds"] += time.perf_counter() - started
 
     def flush(self) -> None:
         """Persist the buffered units now."""
         with self._mutex:
             self._raise_timer_error()
-            self._write_buffer()
+        self._write_buffer()
 
-    def _timed_flush(self) -> None:
-        with self._mutex:
-            self._timer = None
-            if self._closed:
-                return
+    def _write_when_due(self) -> None:
+        """The writer thread: write the buffer when its oldest unit has waited ``flush_seconds``, until closed.
+
+        One thread for the store's life (a thread a part cost 10 ms of
+        start-up on a loaded machine). After a failed write it stops; the
+        scan's thread raises the error at its next call.
+        """
+        while True:
+            with self._mutex:
+                while not self._closed and (not self._buffer or time.monotonic() < self._deadline):
+                    self._due.wait(self._deadline - time.monotonic() if self._buffer else None)
+                if self._closed:
+                    return
+            started = time.thread_time()
             try:
-                self._write_buffer()
-            except BaseException as exc:  # kept for the scan's thread: a timer's traceback would be lost
+                self._write_buffer(timed=True)
+            except BaseException as exc:  # kept for the scan's thread: this thread's traceback would be lost
                 self._timer_error = exc
+                return
+            finally:
+                self.counts["timer_cpu_seconds"] += time.thread_time() - started
 
     def _raise_timer_error(self) -> None:
         if self._timer_error is not None:
             exc, self._timer_error = self._timer_error, None
             raise exc
 
-    def _cancel_timer(self) -> None:
-        """Stop a pending timed write (the caller holds the mutex)."""
-        if self._timer is not None:
-            self._timer.cancel()
-            self._timer = None
+    def _write_buffer(self, timed: bool = False) -> None:
+        """Write the buffer as one part of one row group.
 
-    def _write_buffer(self) -> None:
-        """Write the buffer as one part (the caller holds the mutex)."""
-        self._cancel_timer()
-        if not self._buffer:
-            return
-        # Units with rows, each its own row group, so the final merge can move whole units.
-        units = [(key, rows.num_rows) for key, rows in self._buffer if rows.num_rows]
-        meta = {
-            "config_hash": self.config_hash,
-            "final_states": self._buffer_states,
-            "row_group_units": [key for key, _ in units],
-        }
-        table = with_metadata(concat_rows([rows for _, rows in self._buffer]), meta)
-
-        def write(sink) -> None:
-            with pq.ParquetWriter(sink, table.schema) as writer:
-                offset = 0
-                for _, n_rows in units:
-                    writer.write_table(table.slice(offset, n_rows), row_group_size=n_rows)
-                    offset += n_rows
-
-        part = self.parts / f"part-{self._part_counter:06d}-{os.getpid()}.parquet"
-        _atomic_write(part, write)
-        self._part_counter += 1
-        self._buffer, self._buffer_states = [], {}
-        self._last_flush = time.monotonic()
+        Parts are written one at a time (``_write_lock``), outside the
+        mutex: the scan goes on adding units while the writer thread writes.
+        A failed write puts its units back in front of the buffer.
+        """
+        with self._write_lock:
+            with self._mutex:
+                if timed and self._closed:
+                    return
+                if not self._buffer:
+                    return
+                taken = self._buffer, self._buffer_states, self._buffer_rows
+                states = self._buffer_states
+                part = self.parts / f"part-{self._part_counter:06d}-{os.getpid()}.parquet"
+                self._part_counter += 1
+                self._buffer, self._buffer_states, self._buffer_rows = [], {}, 0
+                self._writing = (part, taken[0], states)
+            try:
+                rows, units = units_table(taken[0])  # outside the mutex: units go on being added
+                table = with_metadata(rows, {"config_hash": self.config_hash, "final_states": states, "units": units})
+                self._store_config()
+                atomic_write_table(table, part, row_group_size=max(1, table.num_rows), **write_options(table.schema))
+            except BaseException:
+                with self._mutex:
+                    self._writing = (None, [], {})
+                    self._buffer = taken[0] + self._buffer
+                    self._buffer_states = {**taken[1], **self._buffer_states}
+                    self._buffer_rows += taken[2]
+                raise
+            with self._mutex:
+                self._writing = (None, [], {})
+                self._last_part = (part, TableSource(rows, units), states)
+            self.counts["parts"] += 1
+            self.counts["part_rows"] += table.num_rows
 
     def finalize(self, return_rows: bool = True) -> pa.Table | None:
-        """Merge parts into the final file atomically, remove the parts and release the lock.
+        """Merge the parts and the buffered units into the final file atomically, remove the parts, release the lock.
 
         Returns the rows, sorted by the row columns (None when not
-        ``return_rows``). A run whose every unit is still in the buffer (no
-        part on disk: it finished within one checkpoint interval of a fresh
-        start) writes the final file straight from memory instead of through
-        a part it would read back. Otherwise the parts are streamed into the
-        final file one row group at a time (:meth:`_merge_parts`) and the rows
-        asked for are read back from it.
+        ``return_rows``). The buffered units, the part written last and a
+        part being written go into the final file from memory, not read back
+        and not waited for: a run that finishes within one checkpoint
+        interval of a fresh start costs one write, and one a little longer a
+        part and the final file. Meanwhile the writer thread goes on, so a
+        merge that outlasts the interval still has the buffer written as a
+        part for a resume; a merge that fails writes them before the error
+        goes on.
         """
-        with self._mutex:
-            in_memory = self._part_counter == 0
-            if in_memory:
-                self._cancel_timer()
-                table = self._unique(concat_rows([rows for _, rows in self._buffer]))
-                states = self._buffer_states
-                self._buffer, self._buffer_states = [], {}
-        if in_memory:
-            table = sort_rows(table, self.row_columns)
-            atomic_write_table(with_metadata(table, self._final_metadata(states)), self.path)
-        else:
-            self.flush()
-            self._merge_parts()
+        started = time.perf_counter()
+        with self._mutex:  # one moment's view: the parts on disk, the one being written, the buffer
+            self._raise_timer_error()
+            buffer, states = list(self._buffer), dict(self._buffer_states)
+            on_disk = sorted(self.parts.glob("part-*.parquet"))
+            last_part, writing = self._last_part, self._writing
+        in_memory = {}
+        if last_part[0] is not None:
+            in_memory[last_part[0]] = (last_part[1], last_part[2])
+        if writing[0] is not None:  # its units as the writer thread took them, whether or not it has finished
+            in_memory[writing[0]] = (TableSource(*units_table(writing[1])), writing[2])
+        try:
+            rows = self._merge(
+                sorted(set(on_disk) | set(in_memory)), in_memory, units_table(buffer), states, return_rows
+            )
+        except BaseException:
+            try:
+                self.flush()
+            except Exception as exc:  # the merge's error is the one to report
+                _log.warning(f"could not write the last units of {str(self.path)!r} for a resume: {exc}")
+            raise
+        self._stop_writing()  # a part still being written is finished before its folder goes
         shutil.rmtree(self.parts, ignore_errors=True)
         self.close()
-        if not return_rows:
-            return None
-        return table if in_memory else read_parquet(self.path).replace_schema_metadata(None)
+        self.counts["scan_thread_seconds"] += time.perf_counter() - started
+        return rows
 
     def _final_metadata(self, states: dict[str, list[float]]) -> dict[str, Any]:
         return dict(self.metadata, final_states=states, completed=time.strftime("%Y-%m-%dT%H:%M:%S%z"))
 
-    def _merge_parts(self) -> None:
-        """Write the final file from the parts: streamed by row group, or merged in memory when it must be.
+    def _merge(
+        self,
+        paths: list[Path],
+        in_memory: dict[Path, tuple[TableSource, dict[str, list[float]]]],
+        buffered: tuple[pa.Table, Units],
+        buffer_states: dict[str, list[float]],
+        return_rows: bool,
+    ) -> pa.Table | None:
+        """Write the final file from the parts (``paths``, those in ``in_memory`` from there) and the buffer.
 
-        The stream (:func:`pendsweep.merge.plan_row_groups`) holds the row-key
-        columns of all parts and one row group; its file has the rows, order,
+        Streamed by span, or merged in memory when it must be. The stream
+        (:func:`pendsweep.merge.plan_spans`) holds the row-key columns of
+        all parts and about one row group; its file has the rows, order,
         schema and metadata of the in-memory merge (read back, the two are
-        equal). When the row groups' key ranges overlap (or a part from an
-        older version does not name its row groups' units) every row is read,
-        duplicates dropped, sorted and written from memory instead.
+        equal). When the units' key ranges overlap (or a part from an older
+        version does not name its units) every row is read, duplicates
+        dropped, sorted and written from memory instead.
         """
-        parts, units, states = [], [], {}
+        files: list[pq.ParquetFile] = []
+        sources: list[PartSource | TableSource] = []
+        states: dict[str, list[float]] = {}
         try:
-            for f in sorted(self.parts.glob("part-*.parquet")):
+            for f in paths:
+                if f in in_memory:  # written (or being written) by this store: its rows are here
+                    sources.append(in_memory[f][0])
+                    states.update(in_memory[f][1])
+                    continue
                 try:
                     part = pq.ParquetFile(f, pre_buffer=False)  # pre-buffering keeps every row group read
                     meta = _part_metadata(part)
                 except (OSError, ValueError, KeyError, TypeError, pa.ArrowException) as exc:
                     self._set_aside(f, exc)
                     continue
+                files.append(part)
                 self._check_hash(meta.get("config_hash"), f)
-                parts.append(part)
-                units.append(meta.get("row_group_units"))
+                sources.append(PartSource(part, meta))
                 states.update(meta["final_states"])
+            buffer_rows, buffer_units = buffered
+            if buffer_units:
+                sources.append(TableSource(buffer_rows, buffer_units))
+            states.update(buffer_states)
             metadata = self._final_metadata(states)
-            plan = plan_row_groups(parts, units, self.row_columns) if parts else None
+            plan = plan_spans(sources, self.row_columns)
             if plan is None:
-                table = self._unique(concat_rows([part.read().replace_schema_metadata(None) for part in parts]))
-                atomic_write_table(with_metadata(sort_rows(table, self.row_columns), metadata), self.path)
-            else:
-                schema = schema_with_metadata(unified_schema(parts), metadata)
-                _atomic_write(self.path, lambda sink: write_row_groups(sink, parts, plan, schema))
+                table = self._unique(concat_rows([source.read_all() for source in sources]))
+                table = sort_rows(table, self.row_columns)
+                atomic_write_table(with_metadata(table, metadata), self.path, **write_options(table.schema))
+                self.counts["final_row_groups"] += 1  # at most a million rows (the writer's default) a group
+                return table if return_rows else None
+            keep: list[pa.Table] | None = [] if return_rows else None  # every row is asked for: none read back
+            schema = schema_with_metadata(unified_schema(sources) if sources else pa.schema([]), metadata)
+
+            def write(sink) -> None:
+                groups, reads = write_spans(sink, sources, plan, schema, keep)
+                self.counts["final_row_groups"] += groups
+                self.counts["merge_reads"] += reads
+
+            _atomic_write(self.path, write)
         finally:
-            for part in parts:
+            for part in files:
                 part.close()
+        if keep is None:
+            return None
+        return concat_rows(keep) if keep else pa.table({})
+
+    def _stop_writing(self) -> None:
+        """No part is written from now on (a timed write under way ends first); the writer thread ends."""
+        with self._write_lock, self._mutex:
+            self._closed = True
+            self._last_part = (None, None, {})
+            self._due.notify_all()
 
     def close(self) -> None:
         """Release the lock (idempotent). Unflushed units are dropped; parts stay for a later resume."""
-        with self._mutex:
-            self._closed = True
-            self._cancel_timer()
+        self._stop_writing()
         self.lock.release()
 
     def __enter__(self) -> ResultStore:

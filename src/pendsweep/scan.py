@@ -18,8 +18,9 @@ protocol; :func:`run_scan` does the rest, the same way for every kind:
 5. merges the parts into the final file and releases the lock.
 
 With an output file, rows are not gathered while the scan runs: each unit
-goes to the store, which holds at most its buffer until the next checkpoint,
-and the merge streams the parts into the final file one unit at a time. A
+goes to the store, which holds at most its buffer until the next checkpoint
+(and writes it as one part of many units), and the merge streams the parts
+into the final file a part at a time. A
 caller that wants no rows back (``return_rows=False``, e.g. a command that
 summarises a few columns read back from the file) therefore never holds all
 of them; a resumed run reads back only :attr:`Scan.resume_columns`.
@@ -268,11 +269,13 @@ def run_scan(
         built; the rows stay in the columns the scan made them in).
     checkpoint_seconds : float
         With ``output``: a finished unit is persisted at most this many
-        seconds after it finishes (0: at once; each write costs two fsyncs).
-        A run killed later loses none of it.
+        seconds after it finishes (0: at once; each write costs two fsyncs),
+        together with every unit that finished meanwhile. A run killed later
+        loses none of it.
     return_rows : bool
         False (with ``output`` only): return None and hold no more rows than
-        the store's buffer and one unit of the merge; read what is needed
+        the store's buffer and about two row groups of the merge (a few MiB);
+        read what is needed
         back from ``output`` (e.g. a few columns with ``pq.read_table(output,
         columns=...)``).
 
@@ -312,7 +315,7 @@ def run_scan(
         return None
     if as_frame:
         return scan.order(rows.to_pandas())
-    return sort_rows(rows, list(scan.row_columns))
+    return sort_rows(rows, list(scan.row_columns)) if output is None else rows  # a store's rows come sorted
 
 
 def _run(
