@@ -11,9 +11,10 @@ $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[test]'
+	$(BIN)/pendsweep warmup  # compile every command's numba kernels once, so that the first run starts warm
 	touch $(STAMP)
 
-setup: $(STAMP)  ## create .venv and install pendsweep with its test tools
+setup: $(STAMP)  ## create .venv, install pendsweep with its test tools, compile its kernels (pendsweep warmup)
 
 run: $(STAMP)  ## the main job: Fig. 11(a) sweep -> results/fig11a.parquet and results/figures/fig11a.png
 	$(BIN)/pendsweep run fig11a

@@ -117,9 +117,10 @@ def test_rotate_sincos_accuracy():
 
 
 def test_inner_loop_is_vectorised():
-    """LLVM turns the per-point loop into packed AVX(-512) double arithmetic."""
+    """LLVM turns the per-point loop into packed AVX(-512) double arithmetic, with nothing left scalar in it."""
     counts = vector_instructions()
     assert counts["zmm_packed_double_ops"] + counts["ymm_packed_double_ops"] > 100, counts
+    assert counts["scalar_double_ops"] == counts["scalar_conversions"] == 0, counts
 
 
 def _scalar_runs(params, states, transient, record, signum="step"):

@@ -20,9 +20,9 @@ from __future__ import annotations
 import json
 import math
 import os
-import re
 import subprocess
 import sys
+import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -36,11 +36,13 @@ from ..backends._batch import run_batch
 from ..kernels import WIDE_VECTORS, wrap_angle
 from ..params import TABLE_IV, ModelParams
 from .core import solve_ivp_point
+from .lane_loop import TARGETS_ISA, target_environment, vector_instructions, vector_instructions_for
 from .registry import benchmark
 
 FIGURE = Path("results/figures/throughput.png")
 TARGETS = {
     "batched_ns_per_point_step_per_core_max": 6.0,
+    "avx2_build_ns_per_point_step_per_core_max": 10.0,
     "speedup_vs_scalar_min": 5.0,
     "speedup_vs_jax_min": 10.0,
     "speedup_vs_solve_ivp_min": 1000.0,
@@ -135,23 +137,6 @@ def jax_rk4_factory():
     return run
 
 
-def vector_instructions() -> dict[str, int]:
-    """Packed double instructions LLVM emitted for the batched inner loop, by register width."""
-    from ..kernels._batched import _N_CONST, _advance_chunk
-
-    fn = nb.njit(**{k: v for k, v in _advance_chunk.targetoptions.items() if k not in ("cache", "nopython")})(
-        _advance_chunk.py_func
-    )  # uncached, to inspect
-    fn(*[np.zeros(16) for _ in range(7)], np.ones((_N_CONST, 16)), np.zeros((3, 16)), np.zeros(3), True, 0, 1, False)
-    asm = next(iter(fn.inspect_asm().values()))
-    ops = r"\bv(?:fn?m(?:add|sub)\d+|mul|add|sub|div|sqrt)pd\s+%?"
-    return {
-        "zmm_packed_double_ops": len(re.findall(ops + "zmm", asm)),
-        "ymm_packed_double_ops": len(re.findall(ops + "ymm", asm)),
-        "scalar_double_ops": len(re.findall(r"\bv(?:fn?m(?:add|sub)\d+|mul|add|sub|div)sd\b", asm)),
-    }
-
-
 def best_times(fn: Callable[[], Any], repeat: int = 3) -> tuple[float, float]:
     """Smallest wall time and smallest process CPU time (all threads) [s] of ``repeat`` calls."""
     walls, cpus = [], []
@@ -192,6 +177,17 @@ print(json.dumps(best_times(lambda: run_batch(params, states, 0, horizon, thread
 """
 
 
+def _build_row(name: str, env: dict[str, str], grid: tuple[int, int], horizon: int, threads: int, note: str) -> dict:
+    """The batched kernel on the peers' points, built and timed in a fresh process with environment ``env``."""
+    done = subprocess.run(
+        [sys.executable, "-c", _NARROW_SCRIPT, *(str(v) for v in (*grid, horizon, threads))],
+        env=env, capture_output=True, text=True, check=True,
+    )  # fmt: skip
+    times = json.loads(done.stdout.strip().splitlines()[-1])
+    name = f"{name} ({threads} thread{'s' if threads > 1 else ''})"
+    return _row(name, times, grid[0] * grid[1] * horizon * 400, threads, horizon, note)
+
+
 def _narrow_vectors_row(grid: tuple[int, int], horizon: int, threads: int) -> dict | None:
     """The batched kernel built with numba's own tuning (256-bit vectors), in a fresh process.
 
@@ -201,15 +197,33 @@ def _narrow_vectors_row(grid: tuple[int, int], horizon: int, threads: int) -> di
     if not WIDE_VECTORS:
         return None
     env = dict(os.environ, PENDSWEEP_VECTOR_WIDTH="256")
-    done = subprocess.run(
-        [sys.executable, "-c", _NARROW_SCRIPT, *(str(v) for v in (*grid, horizon, threads))],
-        env=env, capture_output=True, text=True, check=True,
-    )  # fmt: skip
-    times = json.loads(done.stdout.strip().splitlines()[-1])
-    name = f"pendsweep batched, numba's 256-bit tuning ({threads} thread{'s' if threads > 1 else ''})"
-    return _row(
-        name, times, grid[0] * grid[1] * horizon * 400, threads, horizon, "PENDSWEEP_VECTOR_WIDTH=256, a fresh process"
+    return _build_row(
+        "pendsweep batched, numba's 256-bit tuning",
+        env,
+        grid,
+        horizon,
+        threads,
+        "PENDSWEEP_VECTOR_WIDTH=256, a fresh process",
     )
+
+
+def _avx2_row(grid: tuple[int, int], horizon: int, threads: int) -> dict | None:
+    """The batched kernel built for AVX2 (``TARGETS_ISA["avx2"]``) and run here, in a fresh process and numba cache.
+
+    What an AVX2-only machine runs, timed on this one: None where this CPU
+    lacks AVX2 or is that build already (no AVX-512).
+    """
+    import llvmlite.binding as llvm
+
+    features = llvm.get_host_cpu_features().flatten().split(",")
+    if "+avx2" not in features or "+avx512f" not in features:
+        return None
+    with tempfile.TemporaryDirectory(prefix="pendsweep-avx2-") as cache:
+        name, features = TARGETS_ISA["avx2"]
+        return _build_row(
+            "pendsweep batched, AVX2 build", target_environment("avx2", cache), grid, horizon, threads,
+            f"NUMBA_CPU_NAME={name} NUMBA_CPU_FEATURES='{features}', a fresh process",
+        )  # fmt: skip
 
 
 def _markdown(rows: list[dict]) -> list[str]:
@@ -369,9 +383,9 @@ def bench_throughput(quick: bool) -> dict:
             _row(f"pendsweep batched ({t} thread{'s' if t > 1 else ''})", times, n * horizon * steps, t, horizon)
         )
 
-    narrow = _narrow_vectors_row(grid, horizon, 1)  # against the one-thread row: no scheduling in the ratio
-    if narrow is not None:
-        rows.append(narrow)
+    # Against the one-thread row: no scheduling in the ratios.
+    builds = [_narrow_vectors_row(grid, horizon, 1), _avx2_row(grid, horizon, 1)]
+    rows.extend(row for row in builds if row is not None)
 
     backend = make_backend("emulated")
     backend.run_point(params[0], states[0], 0, 1)
@@ -433,7 +447,7 @@ def bench_throughput(quick: bool) -> dict:
     best = min(
         r["ns_per_point_step_per_core"]
         for r in rows
-        if r["peer"].startswith("pendsweep batched") and "256-bit" not in r["peer"]
+        if r["peer"].startswith("pendsweep batched") and "256-bit" not in r["peer"] and "AVX2" not in r["peer"]
     )
     for r in rows:
         r["times_slower_than_batched"] = r["ns_per_point_step_per_core"] / best
@@ -450,6 +464,7 @@ def bench_throughput(quick: bool) -> dict:
         "agreement": agreement,
         "jax": jax_note,
         "vector_instructions_of_inner_loop": vector_instructions(),
+        "vector_instructions_by_isa": {isa: vector_instructions_for(isa) for isa in TARGETS_ISA},
         "wide_vectors": WIDE_VECTORS,
         "targets": TARGETS,
         "batched_ns_per_point_step_per_core": best,
@@ -461,6 +476,13 @@ def bench_throughput(quick: bool) -> dict:
         one_thread = next(r for r in rows if r["peer"] == "pendsweep batched (1 thread)")
         result["speedup_vs_256_bit_vectors"] = (
             narrow_rows[0]["ns_per_point_step_per_core"] / one_thread["ns_per_point_step_per_core"]
+        )
+    avx2_rows = [r for r in rows if "AVX2" in r["peer"]]
+    if avx2_rows:
+        one_thread = next(r for r in rows if r["peer"] == "pendsweep batched (1 thread)")
+        result["avx2_build_ns_per_point_step_per_core"] = avx2_rows[0]["ns_per_point_step_per_core"]
+        result["avx2_build_over_host_build"] = (
+            avx2_rows[0]["ns_per_point_step_per_core"] / one_thread["ns_per_point_step_per_core"]
         )
     jax_rows = [r for r in rows if r["peer"].startswith("JAX")]
     if jax_rows:

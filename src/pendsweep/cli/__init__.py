@@ -19,6 +19,7 @@ from . import (
     _substructured,  # noqa: F401,E402  (registers trace and sync)
     _sweep,  # noqa: F401,E402  (registers the sweep commands)
     _wait,  # noqa: F401,E402  (registers wait)
+    _warmup,  # noqa: F401,E402  (registers warmup)
 )
 from ._app import main
 

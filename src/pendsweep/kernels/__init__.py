@@ -21,6 +21,7 @@ from ._layout import (
     STATUS_UNSTABLE,
 )
 from ._measured import driven_trace, pendulum_trace, substructured_replay
+from ._notice import announce_compilation
 from ._records import wrap_angle
 from ._rhs import PHYSICS, compile_physics
 
@@ -43,3 +44,5 @@ __all__ = [
     "substructured_replay",
     "wrap_angle",
 ]
+
+announce_compilation()  # numba compiles a kernel at its first call, after this

@@ -4,7 +4,9 @@ The scalar kernel (:func:`pendsweep.kernels.emulated_periods`) spends its
 time in libm ``sin``/``cos``, which LLVM cannot vectorise. Here the state of
 a chunk of points (lanes) lives in structure-of-arrays form and the
 innermost loop runs over lanes, so that LLVM turns one RK4 step of the whole
-chunk into AVX-512 code; ``sin``/``cos`` come from the branch-free
+chunk into packed AVX2 or AVX-512 code, two vector iterations interleaved
+(:mod:`pendsweep._vector_width`), no scalar double arithmetic in the loop for
+either (``make bench`` and the tests inspect both builds); ``sin``/``cos`` come from the branch-free
 :func:`~pendsweep.kernels._sincos.sincos_poly`, once per step, rotated to
 the later stages by :func:`~pendsweep.kernels._sincos.rotate_sincos`. The forcing at the stage
 times is read from the scalar kernel's half-step table of the lane's own
@@ -22,16 +24,20 @@ period end the twin's separation from its partner (normalised section
 coordinates) gives one log-stretch sample, and the twin is pulled back to
 distance ``d0`` along the separation (Benettin), all inside the kernel.
 
-Chunks run in parallel (``prange``).
+Chunks run in parallel on Python threads (the chunk kernel releases the
+GIL), as many as numba's thread count for the calling thread: a ``prange``
+would cost numba's parallel compilation (a quarter of the batched kernel's
+compile time, on every cold start) for a loop that only hands out chunks.
 """
 
 import math
+from concurrent.futures import ThreadPoolExecutor
 from typing import NamedTuple
 
 import numba as nb
 import numpy as np
 
-from ._emulated import eq11_vector_step, forcing_table
+from ._emulated import forcing_table
 from ._layout import (
     N_PARAMS,
     P_B1,
@@ -51,6 +57,8 @@ from ._layout import (
     STATUS_OK,
 )
 from ._records import TWO_PI, fold_extremes, record_close, wrap_angle, wrap_index
+from ._rhs import signum
+from ._steps import eq11_rotating_rk4
 
 # Rows of a chunk's per-lane constant table: the parameter vector, then these.
 _ALPHA, _TABLE, _STEPS, _DT, _INV_L, _INV_M = range(N_PARAMS, N_PARAMS + 6)
@@ -104,38 +112,6 @@ def twin_separation(ref, twin, scales):
     return full, math.sqrt(u0 * u0 + u1 * u1 + u2 * u2 + u3 * u3)
 
 
-# Inlined into _advance_chunk, whose flags it takes there. The loop writes
-# only six arrays: more would exceed LLVM's budget of runtime alias checks.
-@nb.njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"}, inline="always")
-def _step_chunk(y, yd, th, thd, peak, yabs, live, const, forcing, sgn_per_stage):
-    """Advance every live lane of a chunk by one RK4 step.
-
-    ``y, yd, th, thd`` are the state, ``peak`` the signed wrapped theta of
-    largest modulus and ``yabs`` the max |y| of the current period (all
-    float64[n], updated in place); ``live`` is 1.0 for lanes still being
-    integrated; ``const`` is float64[_N_CONST, n]; ``forcing[:, i]``
-    (float64[3, n]) holds lane i's unit forcing sines at the stage times.
-    """
-    for i in range(y.shape[0]):
-        s0, s1, s2 = forcing[0, i], forcing[1, i], forcing[2, i]
-        a = const[_ALPHA, i]
-        y0, yd0, th0, thd0, pk0, ya0 = y[i], yd[i], th[i], thd[i], peak[i], yabs[i]
-        q = (
-            const[P_M_PEND, i], const[P_L, i], const[P_B1, i], const[P_B2, i], const[P_B3, i],
-            const[P_G, i], const[P_M, i], const[P_C, i], const[P_K, i], const[P_K3, i],
-            sgn_per_stage, True, const[_INV_L, i], const[_INV_M, i],
-        )  # fmt: skip
-        y1, yd1, th1, thd1 = eq11_vector_step((y0, yd0, th0, thd0), a * s0, a * s1, a * s2, const[_DT, i], q)
-        _, pk1, ya1 = fold_extremes(abs(pk0), pk0, ya0, y1, th1)
-        on = live[i] != 0.0
-        y[i] = y1 if on else y0
-        yd[i] = yd1 if on else yd0
-        th[i] = th1 if on else th0
-        thd[i] = thd1 if on else thd0
-        peak[i] = pk1 if on else pk0
-        yabs[i] = ya1 if on else ya0
-
-
 @nb.njit(cache=True, nogil=True, inline="always")
 def _gather_forcing(forcing, const, tables, k):
     """Each lane's unit forcing sines at the stage times of step ``k``, from its own table."""
@@ -151,7 +127,11 @@ def _gather_forcing(forcing, const, tables, k):
 # which would keep LLVM from vectorising the lane loop. One call runs every
 # step up to the next period end, so the lane loop's runtime alias checks and
 # the call itself are paid once a period, not once a step (a fifth of the
-# time of a 64-lane chunk). FMA contraction (about a third of the kernel's
+# time of a 64-lane chunk). The lane loop writes only six arrays: more would
+# exceed LLVM's budget of runtime alias checks. It is written here rather than
+# in a helper inlined by numba: numba copies an inlined function's whole IR,
+# once per level of inlining, which made the lane loop's helper cost seconds
+# of compile time. FMA contraction (about a third of the kernel's
 # time, with the short range reduction of sincos_poly) is safe only because
 # every chunk is padded to a whole number of vector groups (LANE_GROUP): LLVM
 # contracts the vector body and its scalar remainder loop differently, and a
@@ -161,8 +141,13 @@ def _gather_forcing(forcing, const, tables, k):
 def _advance_chunk(y, yd, th, thd, peak, yabs, live, const, forcing, tables, uniform, k_start, k_stop, sgn_per_stage):
     """Steps ``k_start`` to ``k_stop - 1`` of every live lane (no lane's period ends before ``k_stop``).
 
-    Arguments as :func:`_step_chunk`; ``tables`` are the chunk's unit forcing
-    tables (a uniform chunk uses the first, of ``const[_STEPS, 0]`` steps).
+    ``y, yd, th, thd`` are the state, ``peak`` the signed wrapped theta of
+    largest modulus and ``yabs`` the max |y| of the current period (all
+    float64[n], updated in place); ``live`` is 1.0 for lanes still being
+    integrated; ``const`` is float64[_N_CONST, n]; ``forcing`` (float64[3, n])
+    receives each lane's unit forcing sines at the stage times of the step;
+    ``tables`` are the chunk's unit forcing tables (a uniform chunk uses the
+    first, of ``const[_STEPS, 0]`` steps).
     """
     steps = int(const[_STEPS, 0])
     for k in range(k_start, k_stop):
@@ -173,32 +158,73 @@ def _advance_chunk(y, yd, th, thd, peak, yabs, live, const, forcing, tables, uni
             forcing[2, :] = tables[j + 2]
         else:
             _gather_forcing(forcing, const, tables, k)
-        _step_chunk(y, yd, th, thd, peak, yabs, live, const, forcing, sgn_per_stage)
+        for i in range(y.shape[0]):  # the lane loop, vectorised
+            s0, s1, s2 = forcing[0, i], forcing[1, i], forcing[2, i]
+            a = const[_ALPHA, i]
+            y0, yd0, th0, thd0, pk0, ya0 = y[i], yd[i], th[i], thd[i], peak[i], yabs[i]
+            q = (
+                const[P_M_PEND, i], const[P_L, i], const[P_B1, i], const[P_B2, i], const[P_B3, i],
+                const[P_G, i], const[P_M, i], const[P_C, i], const[P_K, i], const[P_K3, i],
+                sgn_per_stage, True, const[_INV_L, i], const[_INV_M, i],
+            )  # fmt: skip
+            held = signum(thd0)  # sgn(theta') held over the step, as in eq11_step
+            y1, yd1, th1, thd1 = eq11_rotating_rk4(
+                (y0, yd0, th0, thd0), (a * s0, held), (a * s1, held), (a * s2, held), const[_DT, i], q
+            )
+            _, pk1, ya1 = fold_extremes(abs(pk0), pk0, ya0, y1, th1)
+            on = live[i] != 0.0
+            y[i] = y1 if on else y0
+            yd[i] = yd1 if on else yd0
+            th[i] = th1 if on else th0
+            thd[i] = thd1 if on else thd0
+            peak[i] = pk1 if on else pk0
+            yabs[i] = ya1 if on else ya0
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _any_live(live):
+    """Whether any lane is still integrated."""
+    for i in range(live.shape[0]):
+        if live[i] != 0.0:
+            return True
+    return False
 
 
 @nb.njit(cache=True, nogil=True)
-def _chunk_constants(p, alpha, fe, steps):
-    """Per-lane constants (float64[_N_CONST, n]) and the concatenated unit forcing tables."""
-    n = steps.shape[0]
-    const = np.empty((_N_CONST, n))
+def _chunk_constants(const, p, alpha, fe, steps, lo, hi):
+    """Fill ``const`` (float64[_N_CONST, width]) for lanes ``lo:hi``; return their concatenated unit forcing tables.
+
+    Lanes past ``hi - lo`` (the idle padding) get the first lane's constants.
+    Every copy is an explicit loop: numba compiles an array-to-slice
+    assignment with a formatted shape-mismatch error, seconds of compile time
+    per kind of slice.
+    """
+    n = hi - lo
     size = 0
-    for i in range(n):
-        if i == 0 or steps[i] != steps[i - 1]:
+    for i in range(lo, hi):
+        if i == lo or steps[i] != steps[i - 1]:
             size += 2 * steps[i] + 1
     tables = np.empty(size)
     offset = -1
     for i in range(n):
-        if i == 0 or steps[i] != steps[i - 1]:  # lanes sorted by steps share one table
-            offset = offset + 2 * steps[i - 1] + 1 if i > 0 else 0
-            tables[offset : offset + 2 * steps[i] + 1] = forcing_table(1.0, steps[i])
-        const[:N_PARAMS, i] = p[:, i]
-        const[_ALPHA, i] = alpha[i]
+        g = lo + i
+        if i == 0 or steps[g] != steps[g - 1]:  # lanes sorted by steps share one table
+            offset = offset + 2 * steps[g - 1] + 1 if i > 0 else 0
+            table = forcing_table(1.0, steps[g])
+            for k in range(table.shape[0]):
+                tables[offset + k] = table[k]
+        for row in range(N_PARAMS):
+            const[row, i] = p[row, g]
+        const[_ALPHA, i] = alpha[g]
         const[_TABLE, i] = offset
-        const[_STEPS, i] = steps[i]
-        const[_DT, i] = 1.0 / (fe[i] * steps[i])
-        const[_INV_L, i] = 1.0 / p[P_L, i]
-        const[_INV_M, i] = 1.0 / p[P_M_PEND, i]
-    return const, tables
+        const[_STEPS, i] = steps[g]
+        const[_DT, i] = 1.0 / (fe[g] * steps[g])
+        const[_INV_L, i] = 1.0 / p[P_L, g]
+        const[_INV_M, i] = 1.0 / p[P_M_PEND, g]
+    for i in range(n, const.shape[1]):
+        for row in range(_N_CONST):
+            const[row, i] = const[row, 0]
+    return tables
 
 
 @nb.njit(cache=True, nogil=True)
@@ -242,52 +268,54 @@ def _close_period(i, y, yd, th, thd, peak, yabs, live, swing, period, lanes, lo,
 
 
 @nb.njit(cache=True, nogil=True)
-def _integrate_chunk(state, p, alpha, fe, steps, lanes, lo, sgn_per_stage, out, status, done, stretch):
-    """Integrate one chunk (arrays are the chunk's slices, ``lanes`` global); see :func:`batched_periods`."""
-    n = state.shape[1]
+def _integrate_chunk(state, p, alpha, fe, steps, lanes, lo, hi, sgn_per_stage, out, status, done, stretch):
+    """Integrate lanes ``lo:hi`` (all arrays whole, ``out`` to ``stretch`` the chunk's slices); see :func:`batched_periods`."""
+    n = hi - lo
     # Lanes n..width-1 are idle padding (live = 0, lane 0's constants), so the
     # vectorised step never falls back to its scalar remainder loop.
     width = -(-n // LANE_GROUP) * LANE_GROUP
     y, yd, th, thd = np.zeros(width), np.zeros(width), np.zeros(width), np.zeros(width)
     peak, yabs, live = np.zeros(width), np.zeros(width), np.zeros(width)
-    y[:n], yd[:n], th[:n], thd[:n] = state[0], state[1], state[2], state[3]
     swing = np.zeros(n)
     period = np.zeros(n, dtype=np.int64)
-    period_end = steps.copy()  # step count at the end of each lane's current period
+    period_end = np.empty(n, dtype=np.int64)  # step count at the end of each lane's current period
     const = np.empty((_N_CONST, width))
-    const[:, :n], tables = _chunk_constants(p, alpha, fe, steps)
-    for i in range(n, width):
-        const[:, i] = const[:, 0]
-    max_steps = 0
+    tables = _chunk_constants(const, p, alpha, fe, steps, lo, hi)
+    # max_steps and k start as np.int64(0), not the literal 0: numba would also compile _advance_chunk for a
+    # literal first step (typing sees the loop's first value before it unifies the type), seconds of compile.
+    max_steps = np.int64(0)
     for i in range(n):
+        y[i], yd[i], th[i], thd[i] = state[0, lo + i], state[1, lo + i], state[2, lo + i], state[3, lo + i]
+        period_end[i] = steps[lo + i]
         _, peak[i], yabs[i] = fold_extremes(0.0, 0.0, 0.0, y[i], th[i])  # the opening sample
         status[i] = STATUS_OK
         done[i] = lanes.total[lo + i]
-        max_steps = max(max_steps, lanes.total[lo + i] * steps[i])
+        max_steps = max(max_steps, lanes.total[lo + i] * steps[lo + i])
         live[i] = 1.0 if lanes.total[lo + i] > 0 else 0.0
-    uniform = n > 0 and steps.min() == steps.max()
+    uniform = n > 0
+    for i in range(lo + 1, hi):
+        uniform = uniform and steps[i] == steps[lo]
     forcing = np.zeros((3, width))  # every lane's unit forcing at the current step's stage times
-    k = 0
+    k = np.int64(0)
     while k < max_steps:
-        stop = min(period_end.min(), max_steps)
+        stop = max_steps
+        for i in range(n):  # a loop, not period_end.min(): numba's array reductions take seconds to compile
+            stop = min(stop, period_end[i])
         _advance_chunk(y, yd, th, thd, peak, yabs, live, const, forcing, tables, uniform, k, stop, sgn_per_stage)
         k = stop
         for i in range(n):
             if period_end[i] == k:
-                period_end[i] += steps[i]
+                period_end[i] += steps[lo + i]
                 if live[i] != 0.0:
                     _close_period(
                         i, y, yd, th, thd, peak, yabs, live, swing, period, lanes, lo, out, status, done, stretch
                     )
-        if live.max() == 0.0:  # lanes stop only at period ends
+        if not _any_live(live):  # lanes stop only at period ends
             break
-    state[0, :] = y[:n]
-    state[1, :] = yd[:n]
-    state[2, :] = th[:n]
-    state[3, :] = thd[:n]
+    for i in range(n):
+        state[0, lo + i], state[1, lo + i], state[2, lo + i], state[3, lo + i] = y[i], yd[i], th[i], thd[i]
 
 
-@nb.njit(cache=True, nogil=True, parallel=True)
 def batched_periods(state, p, alpha, fe, steps, lanes, sgn_per_stage, bounds, out, status, done, stretch):
     """Integrate whole forcing periods of many lanes and fill per-period records.
 
@@ -330,12 +358,20 @@ def batched_periods(state, p, alpha, fe, steps, lanes, sgn_per_stage, bounds, ou
         Twins' per-period log-stretch samples ``log(distance / d0)``;
         untouched after a twin stops (callers fill it with NaN).
     """
-    for c in nb.prange(bounds.shape[0] - 1):
-        lo = bounds[c]
-        hi = bounds[c + 1]
-        sub = state[:, lo:hi].copy()
+
+    def integrate(c):
+        lo, hi = bounds[c], bounds[c + 1]
         _integrate_chunk(
-            sub, np.ascontiguousarray(p[:, lo:hi]), alpha[lo:hi], fe[lo:hi], steps[lo:hi], lanes, lo,
-            sgn_per_stage, out[lo:hi], status[lo:hi], done[lo:hi], stretch[lo:hi],
+            state, p, alpha, fe, steps, lanes, lo, hi, sgn_per_stage, out[lo:hi], status[lo:hi], done[lo:hi],
+            stretch[lo:hi],
         )  # fmt: skip
-        state[:, lo:hi] = sub
+
+    chunks = range(bounds.shape[0] - 1)
+    threads = min(nb.get_num_threads(), len(chunks))
+    if threads <= 1:
+        for c in chunks:
+            integrate(c)
+        return
+    with ThreadPoolExecutor(threads) as pool:
+        for _ in pool.map(integrate, chunks):  # re-raises a chunk's exception
+            pass

@@ -243,7 +243,8 @@ def emulated_kernel_function(precision: str = "float64", sgn_per_stage: bool = F
     physics = compile_physics(jit, overrides={"sincos_poly": jit(_libm_sincos)})
     rk4 = make_rk4_step(physics.eq11_rhs, jit)
     wrap_index_d = jit(wrap_index)
-    wrap_angle_d = retarget(wrap_angle, device, real, wrap_index=wrap_index_d)
+    # The device keeps the integer turns (its conversions are cheap; numpy's ceil is a CPU helper).
+    wrap_angle_d = retarget(wrap_angle, device, real, wrap_turns=wrap_index_d)
     return retarget(
         _emulated_periods_thread,
         lambda fn: fn,

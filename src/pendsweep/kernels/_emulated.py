@@ -29,7 +29,7 @@ from ._layout import (
 )
 from ._records import TWO_PI, record_close, record_open, record_sample, wrap_index
 from ._rhs import signum
-from ._steps import eq11_rk4, eq11_rotating_rk4
+from ._steps import eq11_rk4
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
@@ -58,17 +58,6 @@ def eq11_step(x, f0, fh, f1, dt, q):
     """
     s0 = signum(x[3])
     return eq11_rk4(x, (f0, s0), (fh, s0), (f1, s0), dt, q)
-
-
-@nb.njit(cache=True, nogil=True, inline="always")
-def eq11_vector_step(x, f0, fh, f1, dt, q):
-    """:func:`eq11_step` of the vectorised kernel (``q`` asks for the vector form).
-
-    Sin and cos of theta come from :func:`~._sincos.sincos_poly` once per
-    step and are rotated to the later stages (:func:`~._sincos.rotate_sincos`).
-    """
-    s0 = signum(x[3])
-    return eq11_rotating_rk4(x, (f0, s0), (fh, s0), (f1, s0), dt, q)
 
 
 @nb.njit(cache=True, nogil=True)

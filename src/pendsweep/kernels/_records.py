@@ -3,6 +3,7 @@
 import math
 
 import numba as nb
+import numpy as np
 
 from ._layout import (
     REC_ROTATIONS,
@@ -25,9 +26,25 @@ def wrap_index(theta):
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
+def wrap_turns(theta):
+    """:func:`wrap_index` as a float, for the angle arithmetic of vectorised loops.
+
+    A float-to-integer conversion has no packed form on AVX2 (AVX-512 has
+    one), so ``wrap_index`` made LLVM leave the batched lane loop for scalar
+    conversions lane by lane. ``np.ceil`` stays a packed rounding; adding
+    ``+0.0`` turns its ``-0.0`` (for theta in (-pi, pi]) into the ``+0.0``
+    the integer gave, so ``theta - 2 pi k`` keeps its bits even at
+    ``theta = -0.0``. The same
+    value as ``float(wrap_index(theta))`` wherever that integer exists
+    (``|theta| < 2**63 * 2 pi``).
+    """
+    return np.ceil((theta - math.pi) / TWO_PI) + 0.0
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
 def wrap_angle(theta):
     """theta wrapped to (-pi, pi]."""
-    return theta - TWO_PI * wrap_index(theta)
+    return theta - TWO_PI * wrap_turns(theta)
 
 
 @nb.njit(cache=True, nogil=True, inline="always")

@@ -39,12 +39,13 @@ from ._sincos import sincos_poly
 
 
 def signum(x):
-    """-1, 0 or 1 as a float."""
-    if x > 0.0:
-        return 1.0
-    if x < 0.0:
-        return -1.0
-    return 0.0
+    """-1, 0 or 1 as a float (0 for NaN).
+
+    Written as arithmetic on the two comparisons rather than as branches: in
+    the batched lane loop the branches became boolean masks that AVX2 (which
+    has no mask registers) repacked at every stage.
+    """
+    return (1.0 if x > 0.0 else 0.0) - (1.0 if x < 0.0 else 0.0)
 
 
 def pendulum_damping(thd, sgn, b1, b2, b3):

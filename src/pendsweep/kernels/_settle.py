@@ -159,8 +159,13 @@ def carry_history(buffer, keep, held, following):
     """``following[i, :held] = buffer[keep[i], -held:]``: the next round's history of the runs kept.
 
     Row by row, without the temporary a fancy index makes (numpy's ``take``
-    into a strided ``out`` copied element by element: 8 s a round for 1e5 runs).
+    into a strided ``out`` copied element by element: 8 s a round for 1e5 runs),
+    and element by element: numba compiles a slice-to-slice assignment with a
+    formatted shape-mismatch error, seconds of a cold start.
     """
     start = buffer.shape[1] - held
     for i in range(keep.size):
-        following[i, :held, :] = buffer[keep[i], start:, :]
+        source = buffer[keep[i]]
+        for j in range(held):
+            for c in range(buffer.shape[2]):
+                following[i, j, c] = source[start + j, c]

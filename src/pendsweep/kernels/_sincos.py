@@ -47,7 +47,14 @@ _C5 = 2.08757232129817482790e-09
 _C6 = -1.13596475577881948265e-11
 
 
-@nb.njit(cache=True, nogil=True, inline="always")
+# Both functions are compiled once, with the batched kernel's own flags, and
+# inlined by LLVM (before it vectorises the lane loop), not by numba: numba's
+# inlining copies a function's IR at every call site and made these two the
+# larger part of the kernels' compile time (the scalar kernels inlined
+# sincos_poly four times into a branch they never take). The flags make the
+# inlined code the same, FMA contraction included, as numba's inlining gave;
+# tests/test_lane_loop.py fails if the lane loop stops vectorising.
+@nb.njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
 def sincos_poly(x):
     """``(sin x, cos x)`` in float64, branch-free; see the module docstring for accuracy."""
     k = np.floor(x * _INV_PIO2 + 0.5)
@@ -75,7 +82,7 @@ _R2, _R4, _R6, _R8 = -0.5, 1.0 / 24.0, -1.0 / 720.0, 1.0 / 40320.0
 ROTATE_MAX_STEP = 0.1
 
 
-@nb.njit(cache=True, nogil=True, inline="always")
+@nb.njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
 def rotate_sincos(sincos, d):
     """``(sin(x + d), cos(x + d))`` from ``sincos = (sin x, cos x)``, for ``|d| <= ROTATE_MAX_STEP``.
 
