@@ -23,7 +23,8 @@ from pendsweep.diagnose import EFFECTS, Replay, diagnose
 from pendsweep.diagnose.chain import diagnose_records
 from pendsweep.diagnose.fitting import Fit
 from pendsweep.diagnose.judging import block_test
-from pendsweep.diagnose.testbench import CALIBRATION_SEEDS, TEST_SEEDS, Case, generate, truth_value
+from pendsweep.diagnose.populations import truth_value
+from pendsweep.diagnose.testbench import CALIBRATION_SEEDS, TEST_SEEDS, Case, generate
 from pendsweep.params import ENCODER_RESOLUTION
 
 SEED = TEST_SEEDS[0] + 101

@@ -23,9 +23,9 @@ from pendsweep.data import find_free_swing_data, read_free_swing, read_record, w
 from pendsweep.diagnose import EFFECTS, Replay, diagnose, synthesize  # noqa: E402
 from pendsweep.diagnose.damping import fit_damping  # noqa: E402
 from pendsweep.diagnose.effects import nominal_values  # noqa: E402
+from pendsweep.diagnose.populations import RANGES  # noqa: E402
 from pendsweep.diagnose.replay import midpoint_values, noise_std  # noqa: E402
 from pendsweep.diagnose.signatures import cross_correlation, decrement_fit, envelope  # noqa: E402
-from pendsweep.diagnose.testbench import RANGES  # noqa: E402
 from pendsweep.kernels import driven_trace, emulated_trace, pendulum_trace  # noqa: E402
 from pendsweep.params import FIG9_PO, TABLE_IV  # noqa: E402
 
@@ -528,8 +528,9 @@ def test_substructured_extended_model_moves_the_totals(tmp_path):
 
 def test_replay_is_continuous_in_the_delay_at_whole_samples():
     """A delay of exactly 18 samples replays like its neighbours (it read the end of the record)."""
+    from pendsweep.diagnose.populations import draw_case
     from pendsweep.diagnose.replay import Replay
-    from pendsweep.diagnose.testbench import draw_case, generate
+    from pendsweep.diagnose.testbench import generate
 
     _, case = draw_case(43)  # a 2 kHz substructured record from the independent testbench
     replay = Replay(generate(case))

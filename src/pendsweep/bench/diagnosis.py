@@ -35,7 +35,8 @@ def evaluate(seed: int) -> dict:
     """Generate the case of ``seed``, diagnose it, and score the verdict."""
     from ..diagnose.chain import diagnose_records
     from ..diagnose.effects import EFFECTS
-    from ..diagnose.testbench import draw_case, generate
+    from ..diagnose.populations import draw_case
+    from ..diagnose.testbench import generate
 
     category, case = draw_case(seed)
     record = generate(case)
@@ -77,11 +78,11 @@ def evaluate(seed: int) -> dict:
 
 
 def evaluate_look_alike(seed: int, kind: str) -> dict:
-    """Generate the look-alike record of ``seed`` (:func:`~pendsweep.diagnose.testbench.draw_look_alike_case`),
+    """Generate the look-alike record of ``seed`` (:func:`~pendsweep.diagnose.populations.draw_look_alike_case`),
     diagnose it as a user would, and score it: right alone (no look-alike tied), right or tied, the tie's reason."""
     from ..diagnose.chain import diagnose_records
     from ..diagnose.effects import EFFECTS
-    from ..diagnose.testbench import LOOK_ALIKE_CAUSES, SEPARATING_FORCINGS, generate_look_alike_case
+    from ..diagnose.populations import LOOK_ALIKE_CAUSES, SEPARATING_FORCINGS, generate_look_alike_case
 
     forcing, case, record = generate_look_alike_case(seed, kind)
     t0 = time.perf_counter()

@@ -1,6 +1,6 @@
 """Servo-rig benchmark: substructured records of rigs and controllers unlike the replay's (issue 22).
 
-Records come from :func:`pendsweep.diagnose.testbench.generate_rig_case`: first-
+Records come from :func:`pendsweep.diagnose.populations.generate_rig_case`: first-
 and second-order servos behind transport delays (and near-ideal ones), commands
 ramped or held, forward predictors, load-cell lags, central-difference
 controllers, calibration errors of the nominal delay, LVDT noise and drift
@@ -59,7 +59,7 @@ def evaluate(seed: int, closed_loop: bool) -> dict:
     from ..diagnose import Replay, diagnose
     from ..diagnose.chain import diagnose_parts
     from ..diagnose.effects import PART_OF
-    from ..diagnose.testbench import LOOK_ALIKES, generate_rig_case
+    from ..diagnose.populations import LOOK_ALIKES, generate_rig_case
 
     category, case, record = generate_rig_case(seed)
     t0 = time.perf_counter()
@@ -107,10 +107,10 @@ def _estimate(js: dict, cause: str) -> float | None:
 
 
 def evaluate_joint(seed: int) -> dict:
-    """Several records of one servo rig (:func:`~pendsweep.diagnose.testbench.generate_rig_session`) diagnosed
+    """Several records of one servo rig (:func:`~pendsweep.diagnose.populations.generate_rig_session`) diagnosed
     jointly, part by part, and scored as one record."""
     from ..diagnose.chain import diagnose_parts
-    from ..diagnose.testbench import generate_rig_session
+    from ..diagnose.populations import generate_rig_session
 
     category, cases, records = generate_rig_session(seed, JOINT_RECORDS)
     t0 = time.perf_counter()
@@ -171,7 +171,7 @@ def summarize(rows: list[dict]) -> dict:
     def rate(rs, ok):
         return sum(map(ok, rs)) / len(rs) if rs else math.nan
 
-    from ..diagnose.testbench import LOOK_ALIKES
+    from ..diagnose.populations import LOOK_ALIKES
 
     look = [r for r in singles if r["truth"] in LOOK_ALIKES]
     confusion: dict[str, Counter] = {}
