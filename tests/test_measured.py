@@ -409,6 +409,8 @@ def test_cli_synth_diagnose_report(tmp_path):
         "residual_signature",
         "second_round",
         "nuisance",
+        "tie_reasons",
+        "identification",
     }
     assert js["unexplained"] is False and js["explained_share"] > 0.9
     statuses = {c["cause"]: c["status"] for c in js["candidates"]}

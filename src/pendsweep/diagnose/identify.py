@@ -61,8 +61,6 @@ from typing import Any
 import numpy as np
 from scipy.optimize import least_squares
 
-from .replay import Replay
-
 #: A look-alike pair is separable in principle when the K column's variance inflation factor against its
 #: partner's in the regression is below this: the columns are then not multiples of each other, because
 #: the response holds a second frequency (a tone, a sweep, a transient, a driven peak above the noise).
@@ -224,7 +222,7 @@ class _Signals:
     noise: float  # the displacement's noise [m]: its sensor's, or the numerical output's convention floor
 
 
-def oscillator_signals(replay: Replay) -> _Signals | None:
+def oscillator_signals(replay: Any) -> _Signals | None:
     """The oscillator a replay holds and what drives it (module docstring), or None for kinds without one.
 
     The net force is ``sum(factor_i * p^power_i * signal_i)`` at the complex frequency p (``i w`` of a
@@ -248,7 +246,7 @@ def oscillator_signals(replay: Replay) -> _Signals | None:
     return None
 
 
-def identify_oscillator(replay: Replay) -> OscillatorIdentification | None:
+def identify_oscillator(replay: Any) -> OscillatorIdentification | None:
     """The oscillator's dynamics read off ``replay``'s record (module docstring); None for kinds without one."""
     sig = oscillator_signals(replay)
     if sig is None:
