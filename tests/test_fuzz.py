@@ -420,6 +420,7 @@ OTHER: list[tuple[list[str], str]] = [
     (["wait", "tcp://127.0.0.1"], "URL 'tcp://127.0.0.1'; give tcp://HOST:PORT"),
     (["wait", "tcp://127.0.0.1:99999"], "URL 'tcp://127.0.0.1:99999'; give tcp://HOST:PORT"),
     (["wait", "tcp://127.0.0.1:8090", "--timeout", "nan"], "'nan' is not finite"),
+    (["warmup", "--jobs", "2"], "No such option '--jobs'"),
     (["wait", "tcp://127.0.0.1:8090", "--timeout", "-1"], "'-1' s is outside"),
     (["trace", "x.csv"], "'x.csv' must end in .parquet"),
     (["trace", ""], "'' is not a file name"),
