@@ -80,7 +80,7 @@ from ..errors import ConfigError
 from ..scan import Work
 from .effects import EFFECTS, applicable
 from .fitting import Fit, Problem, _params, _solve, fit_model
-from .identify import OscillatorIdentification, identified_starts, identify_oscillator
+from .identify import OscillatorIdentification, identified_starts
 from .judging import (
     _judge,
     _quantisation_bounded,
@@ -407,7 +407,7 @@ def _diagnose(problem: Problem, causes: list[str] | None, n_jobs: int) -> Diagno
     data_start = ({},) if any(rp.fits_initial_state for rp in problem.replays) else ()
     # The oscillator's parameters also start where the record points (identify.py): a fit from the
     # nominal can stop in another basin when a resonance lies between the nominal and the truth.
-    identified = [identify_oscillator(rp) for rp in problem.replays]
+    identified = [rp.identification() for rp in problem.replays]
     pool = Parallel(n_jobs=n_jobs, prefer="threads")
     fits = pool(
         delayed(fit_model)(

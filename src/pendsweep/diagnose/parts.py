@@ -43,7 +43,6 @@ from ..data import Record
 from ..kernels._measured import numerical_trace, platform_trace
 from ..params import kernel_vector
 from .effects import nominal_values
-from .identify import identify_oscillator
 from .replay import DEFAULT_HORIZON, FOLDS, MAX_STEP, Replay, _cut, midpoint_values, smoothed
 
 #: Noise floor of the numerical part: the relative model-form error that controller conventions
@@ -155,7 +154,7 @@ class NumericalReplay(Replay):
         # the record points (identify.py): with a coded mass 6 % off the nominal, the nominal alone
         # read a central difference off an RK4 controller (0.413 against 0.420), and no mass then
         # fitted the output to its floor.
-        ident = identify_oscillator(self)
+        ident = self.identification()
         errors = {}
         for name in INTEGRATORS:
             self.integrator = name

@@ -244,6 +244,15 @@ class Replay:
         # Coulomb term makes the model depend on the step.
         self.substeps = max(1, math.ceil(self.dt / MAX_STEP - 1e-9))
 
+    def identification(self):
+        """The oscillator's dynamics read off this record before any replay (:mod:`.identify`; None for
+        kinds without an oscillator), computed once."""
+        if not hasattr(self, "_identification"):
+            from .identify import identify_oscillator  # the identify stage reads replays: imported late
+
+            self._identification = identify_oscillator(self)
+        return self._identification
+
     def _compare(self, record: Record, channels: tuple[str, ...], folds: int, start: int) -> None:
         """Set up what is compared: ``channels`` (those recorded), their noise, the moving samples, the folds.
 
@@ -317,12 +326,13 @@ class Replay:
             return self._loop(v, p, theta_offset, stop)
         starts = np.array([self._segment_start(k, theta_offset) for k in range(len(self.segments))])
 
-        def driven(states: np.ndarray) -> dict[str, np.ndarray]:
+        def driven(states: np.ndarray, span: int | None = None) -> dict[str, np.ndarray]:
+            """The segments replayed from ``states``, each over its first ``span`` samples only when given."""
             sim = np.empty((stop, 4))
             for k, (i0, i1) in enumerate(self.segments):
                 if i0 >= stop:
                     break
-                i1 = min(i1, stop)
+                i1 = min(i1, stop, i0 + span) if span else min(i1, stop)
                 driven_trace(
                     states[k], p, self.force[i0:i1], self.force_half[i0 : i1 - 1], v["gain"], self.dt, sim[i0:i1]
                 )
@@ -354,17 +364,19 @@ class Replay:
         true model missed a small swing by tens of times the encoder's noise.
         The LVDT's offset and slow drift, and the quasi-static response to the
         load cell's drift in the recorded ``Fe``, shift y by a few tens of
-        micrometres. Both are nuisances of every model (variable projection):
-        :data:`STATE_PASSES` Gauss-Newton passes, each segment on its own
-        samples, with the residuals weighted by each channel's noise (a
-        likelihood: scaled by the channels' spreads instead, a pendulum that
-        barely moves would bend the oscillator's start to fit its angle). The
-        Jacobian takes one perturbed replay per state component (the segments
-        are independent, so one replay moves them all); the offset enters
-        linearly. A segment keeps its pass only where that lowers its weighted
-        squared error (a chaotic segment's linearisation can fail). A pendulum
-        that rests through the record keeps its exact equilibrium
-        (:meth:`_segment_start`).
+        micrometres. Both are nuisances of every model (variable projection),
+        fitted on the compared samples of each segment's first
+        :data:`STATE_WINDOW` seconds: :data:`STATE_PASSES` Gauss-Newton passes,
+        the residuals weighted by each channel's noise (a likelihood: weighted
+        by the channels' spreads, a pendulum that barely moves would bend the
+        oscillator's start to fit its angle), the smoothed start a prior
+        weighted by its own uncertainty (a state the window does not determine,
+        the slope of a pendulum that barely moves, stays near it). The Jacobian
+        takes one perturbed replay per state component (the segments are
+        independent, so one replay moves them all); the offset enters linearly.
+        A segment keeps its pass only where that lowers its objective (a
+        chaotic segment's linearisation can fail). A pendulum that rests
+        through the record keeps its exact equilibrium (:meth:`_segment_start`).
         """
         sim = replay(states)
         prior_mean = states.copy()
@@ -409,7 +421,7 @@ class Replay:
             for j in free:
                 moved = states.copy()
                 moved[:, j] += STATE_STEPS[j]
-                columns.append((weighted(replay(moved), offsets) - r) / STATE_STEPS[j])
+                columns.append((weighted(replay(moved, window), offsets) - r) / STATE_STEPS[j])
             if fits_offset:
                 unit = np.zeros_like(r)
                 unit[channels.index("y")] = 1.0 / sigma[channels.index("y"), 0]
@@ -421,8 +433,7 @@ class Replay:
                 if not np.all(np.isfinite(jk)):
                     continue
                 # The smoothed start is the prior (maximum a posteriori): the data move a state only as far
-                # as they determine it. Without it, a fold that holds out a segment's first block fits the
-                # start on later samples alone and extrapolates the free response backwards.
+                # as they determine it.
                 prior = np.zeros(jk.shape[-1])
                 prior[: len(free)] = prior_weight[k, free]
                 normal = np.einsum("crp,crq->pq", jk, jk) + np.diag(prior)
