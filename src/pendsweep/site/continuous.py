@@ -184,7 +184,7 @@ def rig_test(
         if log is not None:
             log.consolidate()
         raise RigStopped(f"stopped by SIGINT while connecting to {backend.rig}; the test had not begun", 130) from None
-    progress.session_opened(session, restarted, params_value(config, params))
+    progress.session_opened(session, restarted, config.values[todo[0][1]])
     previous = None
     rested = False  # the last point ended at rest: an in-process sweep would kick the pendulum now
     try:
@@ -221,11 +221,6 @@ def rig_test(
                 session.stop(params, "the test ended early")
         if log is not None:
             log.consolidate()
-
-
-def params_value(config, params) -> float:
-    """The swept parameter's value in ``params``."""
-    return float(getattr(params, config.parameter))
 
 
 def _ramp_of(config, previous: float | None, value: float) -> list:
