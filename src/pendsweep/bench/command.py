@@ -187,7 +187,9 @@ def bench_command(quick: bool) -> dict:
         "help_seconds_max": 0.3,
         "one_point_seconds_max": 1.0,
         "canonical_over_naive_max": 1.5,
-        "dense_naive_over_pendsweep_min": 10.0,
+        # Issue 33's 10x is on the ratio with start-up taken off both sides by a 1-point run. The total ratio
+        # (dense_naive_over_pendsweep) is only reported: the script's own start-up caps it at
+        # dense_ratio_ceiling (about 8x), so a 10x target on it could never be met.
         "dense_compute_ratio_min": 10.0,
         "dense_file_share_of_kernel_max": 0.10,
     }

@@ -72,8 +72,10 @@ def execute(
     ``stop_periods`` on a safe stop (:mod:`pendsweep.site.continuous`).
     """
     from ..executors import make_executor
+    from ..scan import check_jobs
     from ..sweep import run_sweep, sweep_metadata
 
+    check_jobs(jobs)  # before the output is looked at, so a bad -j prints no note about it
     check_output(output, "-o/--output", (".parquet",))
     check_output(plot_path, "--plot", FIGURE_SUFFIXES)
     if progress is None:
