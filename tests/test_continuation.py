@@ -455,7 +455,7 @@ def test_cli_continue_writes_the_issue_schema(tmp_path):
     assert "period-doubling at alpha = 16.0971" in r.output
     doc = json.loads(out.read_text())
     assert {"bifurcations", "branches", "config"} <= set(doc)
-    assert set(doc["bifurcations"][0]) == {"type", "value", "branch"}
+    assert set(doc["bifurcations"][0]) == {"type", "value", "branch", "period", "section", "multipliers"}
     assert [b["period"] for b in doc["branches"]] == [1, 2]
     point = doc["branches"][1]["points"][3]
     assert set(point) == {"value", "section", "multipliers", "max_multiplier", "stable"}

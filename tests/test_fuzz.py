@@ -124,6 +124,19 @@ def files(tmp_path_factory) -> dict[str, str]:
     f["adir"] = d / "adir.parquet"
     f["adir"].mkdir()
     f["missing"] = d / "missing.csv"
+    from pendsweep.continuation.run import ContinuationConfig, run_continuation, write_json
+
+    cont = ContinuationConfig("alpha", 15.5, 16.5, model={"b1": 0.0, "b3": 0.0}, max_points=20, max_period=1)
+    f["cont"] = d / "cont.json"
+    write_json(run_continuation(cont), f["cont"])
+    continuations = {
+        "cont_noconfig": {"kind": "continuation", "bifurcations": []},
+        "cont_badbif": {"kind": "continuation", "config": json.loads(f["cont"].read_text())["config"],
+                        "bifurcations": [{"type": "period-doubling", "value": "x", "period": 1, "section": [0] * 4}]},
+    }  # fmt: skip
+    for name, doc in continuations.items():
+        f[name] = d / f"{name}.json"
+        f[name].write_text(json.dumps(doc))
     return {k: str(v) for k, v in f.items()}
 
 
@@ -345,6 +358,30 @@ OTHER: list[tuple[list[str], str]] = [
     (["continue", "alpha", "--from", "0", "--to", "1", "--start", "{missing}"], "missing.csv"),
     (["continue", "alpha", "--from", "0", "--to", "1", "--start-value", "5"], "--start-value needs --start FILE"),
     (["continue", "alpha", "--from", "0", "--to", "1", "--max-points", "0"], "0 is not in the range"),
+    # curve, tolerance
+    (["curve", "{missing}", "--second", "fe", "--from", "2", "--to", "3"], "missing.csv"),
+    (["curve", "{garbage}", "--second", "fe", "--from", "2", "--to", "3"], "garbage.parquet"),
+    (["curve", "{model_binary}", "--second", "fe", "--from", "2", "--to", "3"], "not a readable UTF-8"),
+    (["curve", "{model_list}", "--second", "fe", "--from", "2", "--to", "3"], "not a continuation result"),
+    (["curve", "{cont_noconfig}", "--second", "fe", "--from", "2", "--to", "3"], "'parameter'"),
+    (["curve", "{cont_badbif}", "--second", "fe", "--from", "2", "--to", "3"], "value 'x'"),
+    (["curve", "{cont}", "--second", "fe", "--from", "nan", "--to", "3"], "'nan' is not finite"),
+    (["curve", "{cont}", "--second", "fe", "--from", "2", "--to", "3", "--max-points", "0"], "0 is not in the range"),
+    (["curve", "{cont}", "--second", "fe", "--from", "2", "--to", "3", "--ds", "5"], "ds = 5"),
+    (["curve", "{cont}", "--second", "fe", "--from", "2", "--to", "3", "--limits", "20", "10"], "--limits 20 10"),
+    (["curve", "{cont}", "--second", "fe", "--from", "2", "--to", "3", "-o", "x.txt"], "'x.txt' must end in"),
+    (["curve", "{cont}", "--second", "fe", "--from", "2", "--to", "3", "--plot", "x.txt"], "'x.txt' must end in"),
+    (["curve", "{cont}", "--second", "M", "--from", "-2", "--to", "3"], "M"),
+    (["tolerance", "{missing}"], "missing.csv"),
+    (["tolerance", "{cont}", "--orders", "a,b"], "--orders 'a,b'"),
+    (["tolerance", "{cont}", "--orders", "1,1"], "each order once"),
+    (["tolerance", "{cont}", "--within", "0"], "--within 0"),
+    (["tolerance", "{cont}", "--delay-to", "5"], "--delay-to 5"),
+    (["tolerance", "{cont}", "-B", "servo_bandwidth=fast"], "servo_bandwidth='fast'"),
+    (["tolerance", "{cont}", "-B", "nonsense=1"], "nonsense"),
+    (["tolerance", "{cont}", "--delay-step", "0"], "--delay-step 0"),
+    (["tolerance", "{cont_badbif}"], "value 'x'"),
+    (["tolerance", "{cont}", "-o", "x.csv"], "'x.csv' must end in"),
     # basins, map
     (["basins", "--alpha", "40", "--samples", "abc"], "'abc' is not a valid integer"),
     (["basins", "--alpha", "40", "--grid", "0x5"], "--grid '0x5'"),

@@ -75,6 +75,29 @@ def covered(fig: Figure) -> list[str]:
     return found
 
 
+def over_other_panels(fig: Figure) -> list[str]:
+    """Legends of one panel of ``fig`` that reach into another panel (its axes, ticks, labels or title)."""
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    found = []
+    for ax in fig.axes:
+        legends = [c for c in ax.get_children() if isinstance(c, Legend)]
+        for legend in legends:
+            box = legend.get_window_extent(renderer).padded(-1)
+            for other in fig.axes:
+                if other is ax or not other.get_visible() or other in _colorbars_of(ax, fig):
+                    continue
+                if box.overlaps(other.get_tightbbox(renderer)):
+                    texts = [t.get_text() for t in legend.get_texts()][:2]
+                    found.append(f"legend {texts} of {ax.get_title()[:40]!r} reaches into {other.get_title()[:40]!r}")
+    return found
+
+
+def _colorbars_of(ax, fig: Figure) -> list:
+    """Colour-bar axes drawn for ``ax`` (a legend beside an image may sit next to its own colour bar)."""
+    return [other for other in fig.axes if getattr(other, "_colorbar", None) is not None]
+
+
 #: Least gap [px] between two tick labels of one axis: about a space at the default size, 120 dpi.
 TICK_GAP = 6.0
 
@@ -130,7 +153,8 @@ def inspected(monkeypatch):
     original = Figure.savefig
 
     def savefig(self, fname, *args, **kwargs):
-        seen.append((str(fname), covered(self) + crowded_tick_labels(self) + frequencies_off_axis(self)))
+        problems = covered(self) + over_other_panels(self) + crowded_tick_labels(self) + frequencies_off_axis(self)
+        seen.append((str(fname), problems))
         return original(self, fname, *args, **kwargs)
 
     monkeypatch.setattr(Figure, "savefig", savefig)
@@ -155,6 +179,10 @@ COMMANDS = {
                         "stability_validation", "basin40", "basin_fractions", "map_alpha_fe", "fig11_continuation",
                         "--quick", "-o", "figs"],
     "continue --plot": ["continue", "alpha", "--from", "30", "--to", "31", "--max-points", "4", "-o", "k.json", "--plot", "k.png"],
+    "curve --plot --overlay map": ["curve", "{continuation}", "--second", "fe", "--from", "2.4", "--to", "2.6", "--max-points", "8",
+                                   "-o", "cv.parquet", "--plot", "cv.png", "--overlay", "{map}"],
+    "tolerance --plot": ["tolerance", "{continuation}", "--delay-from", "0.009", "--delay-to", "0.0105", "--delay-step", "0.0005",
+                         "--orders", "1", "-o", "tol.parquet", "--plot", "tol.png"],
 }  # fmt: skip
 
 
@@ -168,10 +196,20 @@ def test_figures_are_readable(name, inspected, tmp_path, monkeypatch):
         "{record}": ["synth", "r.csv", "--duration", "15", "--effect", "viscous_damping=2e-4"],
         "{substructured}": ["synth", "s.parquet", "--kind", "substructured", "--duration", "6"],
     }
+    made = {  # inputs passed by name: marker -> (the command that makes it, its file)
+        "{continuation}": (["continue", "alpha", "--from", "15", "--to", "17", "--set", "b1=0", "--set", "b3=0",
+                            "--max-period", "1", "-o", "c.json"], "c.json"),
+        "{map}": (["map", "alpha", "fe", "--alpha", "10:30:6", "--fe", "2.4:2.6:6", "--set", "b1=0", "--set", "b3=0",
+                   "--max-periods", "60", "-o", "map.parquet"], "map.parquet"),
+    }  # fmt: skip
     for marker, make in inputs.items():
         if marker in args:
             assert CliRunner().invoke(main, make).exit_code == 0
             args = [a.replace(marker, "a.parquet") for a in args if a != marker or marker == "{sweep}"]
+    for marker, (make, name) in made.items():
+        if marker in args:
+            assert CliRunner().invoke(main, make).exit_code == 0
+            args = [name if a == marker else a for a in args]
     result = CliRunner().invoke(main, args)
     assert result.exit_code == 0, result.output
     assert inspected, "the command saved no figure"
@@ -192,6 +230,22 @@ def test_the_check_sees_a_legend_over_data():
     assert covered(fig)
     ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1))
     assert not covered(fig)
+
+
+def test_the_check_sees_a_legend_over_another_panel():
+    """The panel check is evidence only if it fails on a legend pushed into the next panel's tick labels."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    fig = Figure(figsize=(8, 3))  # no layout engine: nothing makes room for the legend
+    FigureCanvasAgg(fig)
+    left, right = fig.subplots(1, 2)
+    x = np.linspace(0, 1, 50)
+    left.plot(x, x, label="a line with a long legend entry")
+    right.plot(x, x)
+    left.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0))
+    assert over_other_panels(fig)
+    left.legend(loc="upper left")
+    assert not over_other_panels(fig)
 
 
 def test_the_check_sees_crowded_tick_labels():

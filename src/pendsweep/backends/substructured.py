@@ -314,14 +314,17 @@ class SubstructuredBackend(BackendBase):
         """Prediction horizon ``tau_hat`` [s] used at these parameters."""
         return prediction_horizon(self.tau_hat, self.effective_delay(params.fe))
 
-    def filter_sos(self, params: ModelParams) -> np.ndarray:
-        return design_force_filter(self.filter_low, self.filter_high, self.filter_order, self.step(params))
+    def filter_sos(self, params: ModelParams, dt: float | None = None) -> np.ndarray:
+        """The force filter's second-order sections at controller step ``dt`` [s] (default :meth:`step`)."""
+        dt = self.step(params) if dt is None else dt
+        return design_force_filter(self.filter_low, self.filter_high, self.filter_order, dt)
 
-    def filter_delay(self, params: ModelParams) -> float:
+    def filter_delay(self, params: ModelParams, dt: float | None = None) -> float:
         """Equivalent delay [s] of the force filter at the forcing frequency (0 when off)."""
         if not self.force_filter:
             return 0.0
-        return filter_delay(self.filter_sos(params), params.fe, self.step(params))
+        dt = self.step(params) if dt is None else dt
+        return filter_delay(self.filter_sos(params, dt), params.fe, dt)
 
     def loop_settings(self, params: ModelParams, dt: float | None = None) -> LoopSettings:
         """The kernel's :class:`LoopSettings` for these parameters (controller, transfer system, rig, sensors).
@@ -332,7 +335,7 @@ class SubstructuredBackend(BackendBase):
         use_pred = self.predictor_order >= 0
         order = max(self.predictor_order, 0)
         w, wd = predictor_weights(order, self.predictor_points, self.horizon(params), dt)
-        wf, _ = predictor_weights(order, self.predictor_points, self.filter_delay(params), dt)
+        wf, _ = predictor_weights(order, self.predictor_points, self.filter_delay(params, dt), dt)
         return LoopSettings(
             M2=float(params.M2),
             C2=float(params.C2),
@@ -349,7 +352,7 @@ class SubstructuredBackend(BackendBase):
             w_pred=w,
             wd_pred=wd,
             use_filter=bool(self.force_filter),
-            sos=self.filter_sos(params),
+            sos=self.filter_sos(params, dt),
             use_force_pred=bool(self.force_filter and use_pred),
             w_force=wf,
             enc_res=float(self.encoder_resolution),
@@ -358,6 +361,7 @@ class SubstructuredBackend(BackendBase):
             stroke=float(self.stroke),
             hf_ratio=HF_RATIO,
             hf_accel=HF_ACCEL_FLOOR,
+            sign_eps=0.0,
         )
 
     # -- running ------------------------------------------------------------------

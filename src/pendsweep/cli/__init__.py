@@ -11,6 +11,7 @@ import gc
 from . import (
     _basins,  # noqa: F401,E402  (registers basins and map)
     _continue,  # noqa: F401,E402  (registers continue)
+    _curve,  # noqa: F401,E402  (registers curve and tolerance)
     _data,  # noqa: F401,E402  (registers diagnose, fit-damping, synth)
     _figures,  # noqa: F401,E402  (registers plot, figures, params)
     _hopf,  # noqa: F401,E402  (registers the hopf command)

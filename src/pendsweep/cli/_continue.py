@@ -8,9 +8,8 @@ from pathlib import Path
 import click
 
 from ..errors import ConfigError
-from ..params import PARAM_SPECS
 from ._app import FINITE, LazyChoice, main
-from ._checks import FIGURE_SUFFIXES, check_output, model_sets
+from ._checks import FIGURE_SUFFIXES, check_output, key_values, model_sets
 from ._executor import apply_options, work_options
 from ._executor import max_work as work_limit
 from ._sweep import read_sweep_metadata
@@ -147,6 +146,21 @@ def _deprecated_json(value: Path | None) -> Path | None:
     help="Vertical axis of --plot (angles in rad, y in m).",
 )
 @click.option(
+    "--backend",
+    type=click.Choice(["emulated", "substructured"]),
+    default="emulated",
+    show_default=True,
+    help="Whose orbits: Eq. (11), or the simulated hybrid test's tick map (noise and quantisation off).",
+)
+@click.option(
+    "-B",
+    "--backend-option",
+    "backend_opts",
+    multiple=True,
+    metavar="KEY=VALUE",
+    help="Substructured backend option, as for sweeps, e.g. -B transport_delay=0.02 -B predictor_order=2.",
+)
+@click.option(
     "--progress/--no-progress", default=None, help="Progress bar on stderr (default: when stderr is a terminal)."
 )
 @apply_options(work_options())
@@ -173,6 +187,8 @@ def continue_command(
     plot_path,
     overlays,
     observable,
+    backend,
+    backend_opts,
     progress,
     max_work,
     yes,
@@ -185,6 +201,11 @@ def continue_command(
     period doubling, Neimark-Sacker; values in the parameter's unit) and
     switches onto the doubled branch at every period doubling up to
     --max-period. Exit 1 when Newton cannot converge at the start.
+
+    With --backend substructured the orbits are those of the hybrid test's
+    own loop (numerical model, prediction, delay, servo, rig), its monodromy
+    by finite differences; PARAMETER may then also be transport_delay [s],
+    servo_bandwidth [Hz], servo_damping or tau_hat [s].
     """
     from ..continuation import ContinuationError
     from ..continuation.run import START_SHIFT_WARN, ContinuationConfig, run_continuation, start_from_file, write_json
@@ -233,6 +254,8 @@ def continue_command(
         max_points=max_points,
         max_period=max_period,
         newton_tol=newton_tol,
+        backend=backend,
+        backend_options=key_values(backend_opts, "-B"),
     )
     from ..scan import check_work
 
@@ -247,7 +270,7 @@ def continue_command(
     except ContinuationError as exc:
         raise click.ClickException(str(exc)) from None
     write_json(doc, json_path)
-    unit = PARAM_SPECS[parameter].unit
+    unit = doc["unit"]
     for i, (branch, ends) in enumerate(zip(doc["branches"], doc["branch_ends"])):
         pts = branch["points"]
         if pts:

@@ -20,9 +20,9 @@ from matplotlib.axes import Axes
 
 from ..errors import ConfigError
 from ..kernels import RECORD_COLUMNS
-from ..params import PARAM_SPECS, ModelParams
+from ..params import PARAM_SPECS
 from .problem import BRANCH_POINT, FOLD, NEIMARK_SACKER, PERIOD_DOUBLING
-from .run import read_json
+from .run import read_json, stored_problem
 from .shooting import PendulumShooting
 
 #: Colour per branch period (forcing periods).
@@ -39,20 +39,18 @@ BIFURCATION_MARKERS = {
 def branch_observables(doc: dict[str, Any], observable: str) -> list[np.ndarray]:
     """Per branch, ``observable`` of every point and orbit period, shape ``(points, k)``.
 
-    The orbit through each stored section is integrated over its ``k``
-    periods with the document's model, step and damping smoothing.
+    The orbit through each stored point is integrated over its ``k`` periods
+    with the document's model, step and damping smoothing (the loop's from
+    its whole stored ``state``, with the document's backend options).
     """
     column = RECORD_COLUMNS.index(observable)
-    cfg = doc["config"]
-    params = ModelParams.from_mapping(cfg["model"])
     out = []
     for branch in doc["branches"]:
-        problem = PendulumShooting(
-            params, cfg["parameter"], branch["period"], cfg["dt"], cfg["eps"], steps=cfg["steps_per_period"]
-        )
+        problem = stored_problem(doc, branch["period"])
+        key = "section" if isinstance(problem, PendulumShooting) else "state"
         values = np.full((len(branch["points"]), branch["period"]), np.nan)
         for i, pt in enumerate(branch["points"]):
-            records = problem.evaluate(np.array(pt["section"]), pt["value"], tangent=False).info.records
+            records = problem.evaluate(np.array(pt[key]), pt["value"], tangent=False).info.records
             values[i] = records[:, column]
         out.append(values)
     return out
@@ -184,8 +182,8 @@ def plot_continuation(
     for doc in docs:
         draw_continuation(ax, doc, observable)
     parameter = docs[0]["parameter"]
-    spec = PARAM_SPECS[parameter]
-    ax.set_xlabel(f"{parameter} [{spec.unit}]  ({spec.doc})")
+    spec = PARAM_SPECS.get(parameter)
+    ax.set_xlabel(f"{parameter} [{spec.unit}]  ({spec.doc})" if spec else f"{parameter} [{docs[0]['unit']}]")
     ax.set_ylabel(f"{observable} [{'m' if observable.startswith('y') else 'rad'}]")
     ax.grid(alpha=0.3)
     ax.legend(loc="upper left", fontsize=7)
@@ -194,6 +192,12 @@ def plot_continuation(
         fixed = {k: v for k, v in cfg["model"].items() if k in ("alpha", "fe", "M", "b1", "b3") and k != parameter}
         title = "continuation, " + ", ".join(f"{k} = {v:g} {PARAM_SPECS[k].unit}" for k, v in fixed.items())
         title += f", eps = {cfg['eps']:g} rad/s"
+        if cfg.get("backend", "emulated") != "emulated":
+            opts = cfg["backend_options"]
+            title += (
+                f"; hybrid loop: {opts['actuator']}, transport delay {1e3 * opts['transport_delay']:g} ms, "
+                f"prediction order {opts['predictor_order']}"
+            )
     ax.set_title(wrapped_title(title, 90), fontsize=9)
     output.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(output, dpi=150)

@@ -44,8 +44,20 @@ from .core import Continuation
 from .problem import Result, Settings
 from .shooting import PendulumShooting, semi_trivial_section
 
-#: Parameters that can be continued (derived M1/C1 are continued as M/C).
-CONTINUABLE = tuple(name for name in PARAM_SPECS if name not in ("M1", "C1", "M2", "C2"))
+#: Model parameters that can be continued (derived M1/C1 are continued as M/C).
+MODEL_CONTINUABLE = tuple(name for name in PARAM_SPECS if name not in ("M1", "C1", "M2", "C2"))
+#: Every continuable parameter: the model's, and the substructured loop's transfer system
+#: (:data:`pendsweep.continuation.loop.LOOP_PARAMETERS`, with ``--backend substructured`` only).
+CONTINUABLE = MODEL_CONTINUABLE + ("transport_delay", "servo_bandwidth", "servo_damping", "tau_hat")
+#: Backends whose periodic orbits can be continued.
+CONTINUATION_BACKENDS = ("emulated", "substructured")
+
+
+def parameter_unit(parameter: str) -> str:
+    """The unit of a continuable parameter (model or loop)."""
+    from .loop import LOOP_PARAMETERS
+
+    return LOOP_PARAMETERS[parameter] if parameter in LOOP_PARAMETERS else PARAM_SPECS[parameter].unit
 
 
 #: RK4 systems a shooting evaluation integrates: the orbit and its four variational directions.
@@ -86,6 +98,12 @@ class ContinuationConfig:
     newton_tol : float
         Newton tolerance on the scaled max-norm of the update
         (state in units of ``l``, ``l w_e``, 1 rad, ``w_e``).
+    backend : {"emulated", "substructured"}
+        Whose orbits: Eq. (11) itself, or the simulated hybrid test's tick
+        map (:mod:`pendsweep.continuation.loop`, noise and quantisation off).
+    backend_options : dict
+        The substructured backend's options (``-B``), as for sweeps; ``dt``
+        is the controller step.
     """
 
     parameter: str
@@ -102,12 +120,42 @@ class ContinuationConfig:
     max_points: int = 400
     max_period: int = 4
     newton_tol: float = 1e-10
+    backend: str = "emulated"
+    backend_options: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        if self.backend not in CONTINUATION_BACKENDS:
+            raise ConfigError(
+                f"--backend {self.backend!r} cannot be continued; choose from {', '.join(CONTINUATION_BACKENDS)}"
+            )
         if self.parameter not in CONTINUABLE:
             raise ConfigError(f"cannot continue in {self.parameter!r}; choose from {', '.join(CONTINUABLE)}")
-        for v in (self.start, self.stop):
-            check_value(self.parameter, v)
+        if self.backend == "emulated":
+            if self.parameter not in MODEL_CONTINUABLE:
+                raise ConfigError(
+                    f"{self.parameter} is an option of the substructured loop: add --backend substructured"
+                )
+            if self.backend_options:
+                raise ConfigError(
+                    f"-B {next(iter(self.backend_options))}: the emulated continuation takes no backend options "
+                    "(its model is set with --set; --backend substructured for the loop's)"
+                )
+            for v in (self.start, self.stop):
+                check_value(self.parameter, v)
+        else:
+            if "dt" in self.backend_options:
+                raise ConfigError("-B dt: give the controller step as --dt")
+            loop_options = dict(self.backend_options)
+            if self.parameter in loop_options:
+                raise ConfigError(f"-B {self.parameter}: {self.parameter} is the continued parameter (--from/--to)")
+            self.loop_backend()  # refuses unknown options, a remote rig and bad values (exit 2)
+            if self.parameter in MODEL_CONTINUABLE:
+                for v in (self.start, self.stop):
+                    check_value(self.parameter, v)
+            elif not all(math.isfinite(v) and v >= 0 for v in (self.start, self.stop)):
+                raise ConfigError(
+                    f"--from/--to of {self.parameter} must be finite numbers >= 0 [{parameter_unit(self.parameter)}]"
+                )
         if self.start == self.stop:
             raise ConfigError(f"--from and --to are both {self.start:g}: give an interval")
         ModelParams.from_mapping(self.model)
@@ -145,12 +193,37 @@ class ContinuationConfig:
 
     def params(self) -> ModelParams:
         """The model at the start value."""
-        return ModelParams.from_mapping(self.model).replace(**{self.parameter: self.lam0})
+        base = ModelParams.from_mapping(self.model)
+        return base.replace(**{self.parameter: self.lam0}) if self.parameter in MODEL_CONTINUABLE else base
 
-    def problem(self) -> PendulumShooting:
-        return PendulumShooting(
-            self.params(), self.parameter, self.period, self.dt, self.eps, lam_scale=abs(self.stop - self.start)
-        )
+    def loop_backend(self):
+        """The smoothed substructured backend at the start value (:func:`~pendsweep.continuation.loop.smoothed_backend`)."""
+        from ..backends import make_backend
+        from .loop import LOOP_PARAMETERS, smoothed_backend
+
+        options = dict(self.backend_options) | {"dt": self.dt}
+        if self.parameter in LOOP_PARAMETERS:
+            options[self.parameter] = self.lam0
+        return smoothed_backend(make_backend("substructured", **options))
+
+    def problem(self, period: int | None = None):
+        """The map problem: :class:`PendulumShooting` or, for the loop, :class:`~pendsweep.continuation.loop.LoopShooting`."""
+        period = self.period if period is None else period
+        lam_scale = abs(self.stop - self.start)
+        if self.backend == "emulated":
+            return PendulumShooting(self.params(), self.parameter, period, self.dt, self.eps, lam_scale=lam_scale)
+        from .loop import LoopShooting
+
+        backend = self.loop_backend()
+        n_cmd = None
+        if self.parameter == "transport_delay":  # the delay line long enough for the whole interval
+            n_cmd = dataclasses.replace(backend, transport_delay=max(self.start, self.stop)).n_cmd
+        return LoopShooting(backend, self.params(), self.parameter, period, self.eps, lam_scale, n_cmd=n_cmd)
+
+    def start_state(self, section) -> np.ndarray:
+        """The continued state of a start section ``(y, ydot, theta, thetadot)`` (the loop's live slots for the loop)."""
+        section = np.asarray(section, dtype=float)
+        return section if self.backend == "emulated" else self.problem().from_section(section)
 
     def settings(self) -> Settings:
         return Settings(
@@ -167,7 +240,9 @@ class ContinuationConfig:
         Every point of both directions of every branch (period ``period``,
         doubled up to ``max_period``) takes at most ``max_iterations`` corrector
         evaluations, each a shooting over the branch's period with the
-        variational equations: five RK4 systems of Eq. (11)'s size.
+        variational equations: five RK4 systems of Eq. (11)'s size. The loop's
+        monodromy is ``2 m + 1`` loop runs (``m`` live slots), each tick a
+        numerical-model step and the rig's substeps.
         """
         from ..scan import Work
 
@@ -176,14 +251,30 @@ class ContinuationConfig:
             periods += k
             k *= 2
         evaluations = 2 * self.max_points * self.settings().max_iterations
-        return Work(evaluations, periods * VARIATIONAL_SYSTEMS, float(self.problem().steps))
+        problem = self.problem()
+        if self.backend == "emulated":
+            return Work(evaluations, periods * VARIATIONAL_SYSTEMS, float(problem.steps))
+        runs = 2 * problem.live.size + 1
+        return Work(evaluations, periods * runs, float(problem.steps * (1 + problem.backend.physics_substeps)))
 
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
         d["model"] = ModelParams.from_mapping(self.model).to_dict()
         d["start_section"] = None if self.start_section is None else list(self.start_section)
-        d["steps_per_period"] = self.problem().steps
+        problem = self.problem()
+        d["steps_per_period"] = problem.steps
+        if self.backend != "emulated":
+            from .loop import smoothing_record
+
+            d["backend_options"] = {k: v for k, v in dataclasses.asdict(problem.backend).items()}
+            d["smoothing"] = smoothing_record(self._unsmoothed_backend(), self.eps)
+            d["delay_line"] = problem.n_cmd
         return d
+
+    def _unsmoothed_backend(self):
+        from ..backends import make_backend
+
+        return make_backend("substructured", **(dict(self.backend_options) | {"dt": self.dt}))
 
 
 def run_continuation(config: ContinuationConfig, progress: bool = False) -> dict[str, Any]:
@@ -195,7 +286,8 @@ def run_continuation(config: ContinuationConfig, progress: bool = False) -> dict
     from ..scan import progress_bar
 
     problem = config.problem()
-    x0 = np.array(config.start_section) if config.start_section is not None else semi_trivial_section(problem.params)
+    section = config.start_section if config.start_section is not None else semi_trivial_section(problem.params)
+    x0 = config.start_state(section)
     bar = progress_bar(progress, unit="pt", desc=f"continue {config.parameter}")
     try:
         result = Continuation(problem, (config.start, config.stop), config.settings(), progress=bar.update).run(
@@ -207,27 +299,73 @@ def run_continuation(config: ContinuationConfig, progress: bool = False) -> dict
 
 
 def document(result: Result, config: ContinuationConfig) -> dict[str, Any]:
-    """The JSON document of a continuation result."""
+    """The JSON document of a continuation result.
+
+    Every point (and bifurcation) carries its ``section`` ``(y, ydot, theta,
+    thetadot)``; the loop's also its whole continued ``state`` (the live
+    slots, :mod:`pendsweep.continuation.loop`), from which it is integrated again.
+    """
+    problem = config.problem()
+    loop = config.backend != "emulated"
+
+    def orbit(x) -> dict[str, Any]:
+        out = {"section": [float(v) for v in (problem.section(x) if loop else x)]}
+        if loop:
+            out["state"] = [float(v) for v in x]
+        return out
 
     def point(pt) -> dict[str, Any]:
         return {
             "value": float(pt.lam),
-            "section": [float(v) for v in pt.x],
+            **orbit(pt.x),
             "multipliers": [[float(m.real), float(m.imag)] for m in pt.multipliers],
             "max_multiplier": pt.max_multiplier,
             "stable": bool(pt.stable),
         }
 
+    periods = [b.period for b in result.branches]
     doc = {
         "parameter": config.parameter,
-        "unit": PARAM_SPECS[config.parameter].unit,
-        "bifurcations": [{"type": b.kind, "value": float(b.lam), "branch": b.branch} for b in result.bifurcations],
+        "unit": parameter_unit(config.parameter),
+        "bifurcations": [
+            {
+                "type": b.kind,
+                "value": float(b.lam),
+                "branch": b.branch,
+                "period": periods[b.branch],
+                **orbit(b.x),
+                "multipliers": [[float(m.real), float(m.imag)] for m in b.multipliers],
+            }
+            for b in result.bifurcations
+        ],
         "branches": [{"period": b.period, "points": [point(p) for p in b.points]} for b in result.branches],
         "branch_ends": [{"branch": i, "origin": b.origin, "ends": list(b.ends)} for i, b in enumerate(result.branches)],
     }
     doc["start_shift"] = start_shift(result, config)
     doc.update(run_metadata("continuation", config.to_dict()))
     return doc
+
+
+def stored_problem(doc: dict[str, Any], period: int, n_cmd: int | None = None):
+    """The map problem of a continuation document's configuration, over ``period`` forcing periods.
+
+    ``n_cmd`` lengthens the loop's delay line (a curve continued into longer delays).
+    """
+    cfg = doc["config"]
+    params = ModelParams.from_mapping(cfg["model"])
+    lam_scale = abs(cfg["stop"] - cfg["start"])
+    if cfg.get("backend", "emulated") == "emulated":
+        return PendulumShooting(
+            params, cfg["parameter"], period, cfg["dt"], cfg["eps"], lam_scale, steps=cfg["steps_per_period"]
+        )
+    from ..backends import make_backend
+    from .loop import LoopShooting
+
+    backend = make_backend("substructured", **cfg["backend_options"])
+    return LoopShooting(
+        backend, params, cfg["parameter"], period, cfg["eps"], lam_scale, cfg["steps_per_period"],
+        max(cfg["delay_line"], n_cmd or 0),
+    )  # fmt: skip
 
 
 def write_json(doc: dict[str, Any], path: Path) -> None:
@@ -251,14 +389,35 @@ def write_json(doc: dict[str, Any], path: Path) -> None:
 def read_json(path: Path) -> dict[str, Any]:
     """A continuation document written by :func:`write_json` (ConfigError otherwise)."""
     try:
-        doc = json.loads(Path(path).read_text())
+        doc = json.loads(Path(path).read_bytes().decode("utf-8"))
     except FileNotFoundError:
         raise ConfigError(f"no continuation file at {str(path)!r}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"{str(path)!r} is not a readable UTF-8 JSON file ({exc.__class__.__name__})") from None
     except json.JSONDecodeError as exc:
         raise ConfigError(f"{str(path)!r} is not valid JSON: {exc}") from None
     if not isinstance(doc, dict) or doc.get("kind") != "continuation":
         raise ConfigError(f'{str(path)!r} is not a continuation result (no "kind": "continuation")')
     return doc
+
+
+#: What a continuation document's ``config`` must hold to rebuild its map problem.
+STORED_CONFIG_KEYS = ("parameter", "start", "stop", "model", "dt", "eps", "steps_per_period")
+
+
+def stored_config(doc: dict[str, Any], path: Path) -> dict[str, Any]:
+    """The ``config`` of continuation document ``doc`` (read from ``path``), checked enough to rebuild its problem."""
+    cfg = doc.get("config")
+    missing = [k for k in STORED_CONFIG_KEYS if not isinstance(cfg, dict) or k not in cfg]
+    if missing:
+        raise ConfigError(f"{str(path)!r} has no {missing[0]!r} in its config: not a result of `pendsweep continue`")
+    if cfg.get("backend", "emulated") != "emulated" and not {"backend_options", "delay_line"} <= set(cfg):
+        raise ConfigError(f"{str(path)!r} continues the hybrid loop but stores no backend options")
+    try:
+        ModelParams.from_mapping(cfg["model"])
+    except (TypeError, ValueError, AttributeError) as exc:
+        raise ConfigError(f"{str(path)!r}: its model is not valid ({exc})") from None
+    return cfg
 
 
 #: Repeat tolerance of the normalised recorded sections (the classifier's normalisation,
@@ -377,7 +536,10 @@ def start_shift(result: Result, config: ContinuationConfig) -> float:
     """Scaled max-norm (theta wrapped) of how far Newton moved the given start section (0 without one)."""
     if config.start_section is None or result.start is None:
         return 0.0
-    problem = config.problem()
-    d = np.asarray(result.start.x) - np.asarray(config.start_section)
+    params = config.params()
+    x = np.asarray(result.start.x)
+    section = config.problem().section(x) if config.backend != "emulated" else x
+    d = section - np.asarray(config.start_section)
     d[2] = (d[2] + np.pi) % (2 * np.pi) - np.pi
-    return float(np.abs(d / problem.scale).max())
+    w = params.omega_e
+    return float(np.abs(d / np.array([params.l, params.l * w, 1.0, w])).max())

@@ -88,6 +88,17 @@ class PendulumShooting:
     def with_period(self, period: int) -> PendulumShooting:
         return PendulumShooting(self.params, self.parameter, period, self.dt, self.eps, self.lam_scale, self.steps)
 
+    def at(self, parameter: str, value: float) -> PendulumShooting:
+        """The same problem with another model ``parameter`` fixed at ``value`` (steps per period kept)."""
+        return PendulumShooting(
+            self.params.replace(**{parameter: value}), self.parameter, self.period, self.dt, self.eps,
+            self.lam_scale, self.steps,
+        )  # fmt: skip
+
+    def section(self, x: np.ndarray) -> np.ndarray:
+        """The section ``(y, ydot, theta, thetadot)`` of the state ``x`` (the state itself)."""
+        return np.asarray(x)
+
     def params_at(self, lam: float) -> ModelParams:
         """The model at parameter value ``lam`` (ParameterError outside its range)."""
         return self.params.replace(**{self.parameter: lam})

@@ -13,7 +13,7 @@ from ..continuation.overlay import draw_continuation, wrapped_title
 from ..continuation.run import ContinuationConfig, run_continuation, write_json
 from ..hopf import hopf_simulate
 from ..params import ModelParams
-from ..plotting import draw_bifurcation, new_figure
+from ..plotting import draw_bifurcation, legend_right, new_figure
 from ..results import read_results
 from ..sweep import run_sweep
 from ..sweepfile import SWEEPS_DIR, load_sweep
@@ -118,36 +118,38 @@ def draw_threshold(ax: Axes, quick: bool) -> None:
     ax.set_xlabel("alpha [N]  (forcing amplitude)")
     ax.set_ylabel(r"max $|\theta|$ over the orbit [rad]")
     ax.grid(alpha=0.3, which="both")
-    ax.legend(loc="center right", fontsize=6)
     ax.set_title(
-        wrapped_title("(c) fe = 2.5 Hz, Table IV damping: the unstable period-2 orbit is the kick threshold", 75),
-        fontsize=8,
+        wrapped_title("(c) fe = 2.5 Hz, Table IV damping: the unstable period-2 orbit is the kick threshold", 110),
+        fontsize=10,
     )
 
 
 @figure("fig11_continuation")
 def fig11_continuation(outdir: Path, quick: bool) -> list[Path]:
-    """Fig. 11(a) and (b): continuation branches (solid stable, dashed unstable) over the sweeps; (c) thresholds."""
-    fig = new_figure((20, 6.2))
-    axes = fig.subplots(1, 3)
+    """Fig. 11(a) and (b): continuation branches (solid stable, dashed unstable) over the sweeps; (c) thresholds.
+
+    One panel a row, each as wide as the page, its legends right of it: no legend reaches into another
+    panel or its tick labels (tests/test_legends.py checks overlaps between panels too).
+    """
+    fig = new_figure((11, 15))
+    axes = fig.subplots(3, 1)
     draw_threshold(axes[2], quick)
+    legend_right(axes[2], fontsize=8)
     for ax, name in zip(axes, PANELS):
         draw_bifurcation(ax, [read_results(panel_sweep(name, outdir, quick))])
         for doc in panel_continuations(name, outdir, quick):
             draw_continuation(ax, doc)
-        # Below the axes: inside, the legend covers the rotating branch near theta = pi.
-        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=3, fontsize=6, markerscale=1.5)
+        legend_right(ax, fontsize=8, markerscale=1.5)
         ax.margins(x=0.02)
-        # Room beyond +-pi: the rotating branch runs along theta = +-pi, clear of the motion strip
-        # (bottom) and the motion legend (top right).
-        ax.set_ylim(-1.12 * math.pi, 1.32 * math.pi)
+        # Room beyond +-pi: the rotating branch runs along theta = +-pi, clear of the motion strip (bottom).
+        ax.set_ylim(-1.12 * math.pi, 1.18 * math.pi)
         ax.set_title(
             wrapped_title(
                 f"{load_sweep(SWEEPS_DIR / f'{name}.toml').description}; "
                 f"branches: tanh(w/eps) damping, eps = 1e-3 rad/s",
-                75,
+                110,
             ),
-            fontsize=8,
+            fontsize=10,
         )
     path = outdir / f"fig11_continuation{'-quick' if quick else ''}.png"
     fig.savefig(path, dpi=150)

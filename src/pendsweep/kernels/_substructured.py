@@ -33,8 +33,10 @@ e. **Rig** over ``[t_k, t_k+1]`` in ``substeps`` RK4 substeps:
      piecewise linear;
 
    with the pendulum ``m l^2 th'' + f_d(th') + m l (g + x'') sin th = 0``
-   (signum of ``th'`` held over a substep). The delayed command is taken at
-   each substep's midpoint, so hold and delay are resolved to one substep.
+   (signum of ``th'`` held over a substep). The servo's held command
+   switches where the delayed time crosses a tick, inside a substep if need
+   be (the substep is split there), so the rig depends continuously on
+   ``tau``; the Hermite actuators take the delayed command at the RK4 stages.
 
 State vector (float64, see :func:`state_offsets`): ``0 y*, 1 y*', 2 theta,
 3 theta' (true), 4 x, 5 x', 6 ticks done since the initial state, 7-8 x at
@@ -142,6 +144,11 @@ class LoopSettings(NamedTuple):
         Runaway limit on ``|x|`` and ``|y*|`` [m].
     hf_ratio, hf_accel : float
         High-frequency instability test, see the backend docs.
+    sign_eps : float
+        0: the signum of theta' in the pendulum damping is held over each rig
+        substep (non-smooth, as a rig's friction is); ``> 0``: ``tanh(theta' /
+        sign_eps)`` [rad/s] at each substep's start, a smooth tick map for
+        continuation (:mod:`pendsweep.continuation.loop`).
     """
 
     M2: float
@@ -168,6 +175,7 @@ class LoopSettings(NamedTuple):
     stroke: float
     hf_ratio: float
     hf_accel: float
+    sign_eps: float
 
 
 @nb.njit(cache=True, nogil=True)
@@ -238,8 +246,8 @@ def next_command(ys, yds, cfg, yh, cmd, cmdd):
 def rig_tick(x, xd, th, thd, cmd, cmdd, cfg, pend, dt):
     """The rig over one controller tick in ``cfg.substeps`` RK4 substeps.
 
-    The delayed command is taken at each substep's midpoint, so hold and delay
-    are resolved to one substep; the signum of theta' is held over a substep.
+    The servo's held command switches exactly where the delayed time crosses a
+    tick (the substep is split there); the signum of theta' is held over a substep.
     ``pend = (m, l, b1, b2, b3, g)``.
     """
     h = dt / cfg.substeps
@@ -247,18 +255,31 @@ def rig_tick(x, xd, th, thd, cmd, cmdd, cfg, pend, dt):
     tzw = 2.0 * cfg.zeta * cfg.ws
     for sub in range(cfg.substeps):
         r0 = sub * h
-        sgn = signum(thd)
+        sgn = signum(thd) if cfg.sign_eps == 0.0 else math.tanh(thd / cfg.sign_eps)
         if cfg.actuator == ACT_SERVO:
-            j, _s = delayed_segment(r0 + 0.5 * h, cfg.tau, dt, 1, cfg.n_cmd)
-            u = cmd[j]
-            x, xd, th, thd = servo_rig_rk4((x, xd, th, thd), u, u, u, h, (ws2, tzw, sgn) + pend)
+            # The held command switches where the delayed time crosses a tick: the substep is split
+            # there, so the rig depends continuously on the delay (a continuation parameter).
+            j0, _s = delayed_segment(r0, cfg.tau, dt, 1, cfg.n_cmd)
+            j1, _s = delayed_segment(r0 + h, cfg.tau, dt, 1, cfg.n_cmd)
+            p_rig = (ws2, tzw, sgn) + pend
+            if j0 == j1:
+                u = cmd[j0]
+                x, xd, th, thd = servo_rig_rk4((x, xd, th, thd), u, u, u, h, p_rig)
+            else:
+                r_switch = cfg.tau + math.floor((r0 + h - cfg.tau) / dt + 1e-9) * dt
+                h0 = min(max(r_switch - r0, 0.0), h)
+                u = cmd[j0]
+                x, xd, th, thd = servo_rig_rk4((x, xd, th, thd), u, u, u, h0, p_rig)
+                u = cmd[j1]
+                x, xd, th, thd = servo_rig_rk4((x, xd, th, thd), u, u, u, h - h0, p_rig)
         else:
+            # Each RK4 stage on its own Hermite segment: x is the piecewise cubic itself, continuous in tau.
+            j, s = delayed_segment(r0, cfg.tau, dt, 1, cfg.n_cmd)
+            _x, _xd, a1 = hermite_at(cmd, cmdd, j, s, dt)
             j, s = delayed_segment(r0 + 0.5 * h, cfg.tau, dt, 1, cfg.n_cmd)
-            s0 = s - 0.5 * h / dt  # segment time at the substep start
-            hs = h / dt
-            _x, _xd, a1 = hermite_at(cmd, cmdd, j, s0, dt)
-            _x, _xd, a2 = hermite_at(cmd, cmdd, j, s0 + 0.5 * hs, dt)
-            x, xd, a4 = hermite_at(cmd, cmdd, j, s0 + hs, dt)
+            _x, _xd, a2 = hermite_at(cmd, cmdd, j, s, dt)
+            j, s = delayed_segment(r0 + h, cfg.tau, dt, 1, cfg.n_cmd)
+            x, xd, a4 = hermite_at(cmd, cmdd, j, s, dt)
             th, thd = pivot_pendulum_rk4((th, thd), a1, a2, a4, h, (sgn,) + pend)
     return x, xd, th, thd
 

@@ -1,0 +1,175 @@
+"""Figures of two-parameter bifurcation curves (``pendsweep curve --plot``) and the delay-tolerance curve.
+
+A curve is drawn in its parameter plane, or over a ``pendsweep map`` of the
+same two parameters (the map's motion classes as an image, its semi-trivial
+Hopf boundary by Floquet theory, Fig. 10, as a line): the curves must lie on
+the image's class boundaries. Codimension-two points are marked; legends sit
+below their panel, never over another (``tests/test_figures.py`` checks).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from matplotlib.colors import ListedColormap
+from matplotlib.patches import Patch
+
+from ..continuation.run import parameter_unit
+from ..errors import ConfigError
+from ..maps import MapConfig, hopf_boundaries
+from ..plotting import legend_below, new_figure
+from ..results import read_results
+from .basins import _OUTLINED, _colour
+
+#: Line style per curve kind.
+CURVE_STYLES = {
+    "period-doubling": dict(color="tab:red", lw=1.6),
+    "fold": dict(color="black", lw=1.6, ls="--"),
+    "neimark-sacker": dict(color="tab:purple", lw=1.6, ls="-."),
+}
+#: Marker per codimension-two event (turns are not marked: they are visible).
+EVENT_MARKERS = {
+    "cusp": "^",
+    "degenerate period doubling": "o",
+    "1:1 resonance": "s",
+    "1:2 resonance": "D",
+    "1:3 resonance": "P",
+    "1:4 resonance": "X",
+    "fold-flip": "v",
+    "fold-Neimark-Sacker": "<",
+    "flip-Neimark-Sacker": ">",
+    "double Neimark-Sacker": "*",
+}
+
+
+def _label(parameter: str, unit: str) -> str:
+    return f"{parameter} [{unit}]"
+
+
+def plot_curves(paths: list[Path], output: Path) -> Path:
+    """Curves (``kind = "curve"`` files) over at most one map (``kind = "map"``), in the map's orientation."""
+    curves, maps = [], []
+    for path in paths:
+        rows, meta = read_results(path)
+        (maps if meta.get("kind") == "map" else curves).append((rows, meta, path))
+        if meta.get("kind") not in ("map", "curve"):
+            raise ConfigError(f"{str(path)!r} is a {meta.get('kind')!r} file; give curve or map results")
+    if len(maps) > 1:
+        raise ConfigError("give at most one map to draw the curves over")
+    first, second = curves[0][1]["config"]["first"], curves[0][1]["config"]["second"]
+    for _, meta, path in curves:
+        if {meta["config"]["first"], meta["config"]["second"]} != {first, second}:
+            raise ConfigError(f"{str(path)!r} is a curve in other parameters than ({first}, {second})")
+    x, y = second, first
+    fig = new_figure((6.4, 5.6))
+    ax = fig.subplots()
+    handles = []
+    if maps:
+        rows, meta, path = maps[0]
+        config = MapConfig(**{k: v for k, v in meta["config"].items()})
+        if {config.x, config.y} != {first, second}:
+            raise ConfigError(
+                f"map {str(path)!r} is over ({config.x}, {config.y}), the curves over ({first}, {second})"
+            )
+        x, y = config.x, config.y
+        handles += _draw_map(ax, rows, config)
+    units = {name: parameter_unit(name) for name in (first, second)}
+    drawn_events: set[str] = set()
+    for rows, meta, _ in curves:
+        kind = meta["config"]["kind"]
+        ordered = rows.sort_values("point")
+        label = f"{kind} curve" + (
+            " (hybrid loop)" if meta["config"]["continuation"].get("backend") == "substructured" else ""
+        )
+        style = CURVE_STYLES[kind] | ({"color": "tab:orange"} if "hybrid" in label else {})
+        (line,) = ax.plot(ordered[x], ordered[y], label=label, **style)
+        handles.append(line)
+        for event, group in rows[rows["event"].isin(EVENT_MARKERS)].groupby("event"):
+            mark = ax.scatter(group[x], group[y], marker=EVENT_MARKERS[event], s=50, facecolors="none",
+                              edgecolors="black", zorder=5, label=event if event not in drawn_events else None)  # fmt: skip
+            if event not in drawn_events:
+                handles.append(mark)
+                drawn_events.add(event)
+    ax.set_xlabel(_label(x, units[x]))
+    ax.set_ylabel(_label(y, units[y]))
+    ax.grid(alpha=0.3)
+    legend_below(ax, handles=handles, ncol=2)
+    kinds = ", ".join(sorted({m["config"]["kind"] for _, m, _ in curves}))
+    ax.set_title(f"{kinds} curve(s) in ({first}, {second})" + (", over the map" if maps else ""), fontsize=10)
+    output = Path(output)
+    output.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(output, dpi=150)
+    return output
+
+
+def _draw_map(ax, rows: pd.DataFrame, config: MapConfig) -> list:
+    """The map's motion classes as an image and its Floquet Hopf boundary; returns legend handles."""
+    nx, ny = len(config.x_values), len(config.y_values)
+    grid = rows.sort_values(["ix", "iy"])
+    labels = grid["motion"].to_numpy().reshape(nx, ny).T
+    present = sorted(set(labels.ravel()))
+    code = np.vectorize({c: i for i, c in enumerate(present)}.get)(labels)
+
+    def edges(v):
+        v = np.asarray(v)
+        if v.size == 1:
+            return [v[0] - 0.5, v[0] + 0.5]
+        return [v[0] - (v[1] - v[0]) / 2, v[-1] + (v[-1] - v[-2]) / 2]
+
+    extent = edges(config.x_values) + edges(config.y_values)
+    ax.imshow(code, origin="lower", aspect="auto", extent=extent, interpolation="nearest",
+              cmap=ListedColormap([_colour(c) for c in present]), vmin=-0.5, vmax=len(present) - 0.5, alpha=0.6)  # fmt: skip
+    ax.set_xlim(extent[0], extent[1])
+    ax.set_ylim(extent[2], extent[3])
+    handles = [Patch(color=_colour(c), alpha=0.6, label=f"map: {c}") for c in present]
+    boundaries = hopf_boundaries(config)
+    if boundaries is not None:
+        other = [c for c in boundaries.columns if c not in ("analytic", "floquet")][0]
+        xy = (
+            (boundaries["floquet"], boundaries[other])
+            if config.x == "alpha"
+            else (boundaries[other], boundaries["floquet"])
+        )
+        (line,) = ax.plot(*xy, color="white", lw=1.5, zorder=2, path_effects=_OUTLINED,
+                          label="Hopf boundary (Floquet, Fig. 10)")  # fmt: skip
+        handles.append(line)
+    return handles
+
+
+def plot_tolerance(path: Path, output: Path) -> Path:
+    """The bifurcation's relative shift against the effective delay, per prediction order, with the tolerance band."""
+    rows, meta = read_results(path)
+    if meta.get("kind") != "tolerance":
+        raise ConfigError(f"{str(path)!r} is not a tolerance result")
+    cfg = meta["config"]
+    within = cfg["within"]
+    fig = new_figure((6.4, 4.8))
+    ax = fig.subplots()
+    for order, group in rows.groupby("order"):
+        name = "no prediction" if order < 0 else f"prediction order {order}"
+        group = group.sort_values("point")
+        (line,) = ax.plot(1e3 * group["effective_delay"], 100 * group["shift"], lw=1.5, label=name)
+        limit = meta["limits"].get(str(int(order)))
+        if limit is not None and limit < cfg["delays"][1] - 1e-12:
+            at = float(np.interp(limit, group["transport_delay"], group["effective_delay"]))
+            shift = float(np.interp(limit, group["transport_delay"], group["shift"]))
+            ax.plot([1e3 * at], [100 * shift], "o", color=line.get_color(), mfc="none")
+    ax.axhspan(-100 * within, 100 * within, color="tab:green", alpha=0.12, label=f"within {100 * within:g} %")
+    ax.axhline(0.0, color="black", lw=0.6)
+    kind = cfg["bifurcation"]["type"]
+    unit = parameter_unit(cfg["continuation"]["parameter"])
+    ax.set_xlabel("total effective delay at the forcing frequency [ms]")
+    ax.set_ylabel(f"shift of the {kind} [%]")
+    ax.set_title(
+        f"hybrid loop: {kind} at {cfg['continuation']['parameter']} = {meta['reference']:.5g} {unit} (emulated), "
+        "against the rig's delay",
+        fontsize=9,
+    )
+    ax.grid(alpha=0.3)
+    legend_below(ax, ncol=2)
+    output = Path(output)
+    output.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(output, dpi=150)
+    return output
