@@ -22,6 +22,7 @@ from ..maps import MapConfig, hopf_boundaries
 from ..plotting import legend_below, new_figure
 from ..results import read_results
 from .basins import _OUTLINED, _colour
+from .registry import figure
 
 #: Line style per curve kind.
 CURVE_STYLES = {
@@ -147,15 +148,26 @@ def plot_tolerance(path: Path, output: Path) -> Path:
     within = cfg["within"]
     fig = new_figure((6.4, 4.8))
     ax = fig.subplots()
+    marked = limited = False
     for order, group in rows.groupby("order"):
         name = "no prediction" if order < 0 else f"prediction order {order}"
         group = group.sort_values("point")
-        (line,) = ax.plot(1e3 * group["effective_delay"], 100 * group["shift"], lw=1.5, label=name)
+        stable = group["loop_stable"].to_numpy(dtype=bool)
+        delay, shift = 1e3 * group["effective_delay"].to_numpy(), 100 * group["shift"].to_numpy()
+        first_unstable = int(np.argmin(stable)) if not stable.all() else len(stable)
+        (line,) = ax.plot(delay[:first_unstable], shift[:first_unstable], lw=1.5, label=name)
+        if first_unstable < len(stable):  # the loop itself unstable: no test could hold it on this orbit
+            ax.plot(delay[first_unstable - 1 :], shift[first_unstable - 1 :], lw=1.0, ls=":", color=line.get_color())
+            ax.plot([delay[first_unstable]], [shift[first_unstable]], "x", ms=8, mew=2, color=line.get_color(),
+                    label=None if marked else "the loop itself unstable from here")  # fmt: skip
+            marked = True
         limit = meta["limits"].get(str(int(order)))
         if limit is not None and limit < cfg["delays"][1] - 1e-12:
             at = float(np.interp(limit, group["transport_delay"], group["effective_delay"]))
-            shift = float(np.interp(limit, group["transport_delay"], group["shift"]))
-            ax.plot([1e3 * at], [100 * shift], "o", color=line.get_color(), mfc="none")
+            shifted = float(np.interp(limit, group["transport_delay"], group["shift"]))
+            ax.plot([1e3 * at], [100 * shifted], "o", color=line.get_color(), mfc="none",
+                    label=None if limited else f"within {100 * within:g} % on a stable loop up to here")  # fmt: skip
+            limited = True
     ax.axhspan(-100 * within, 100 * within, color="tab:green", alpha=0.12, label=f"within {100 * within:g} %")
     ax.axhline(0.0, color="black", lw=0.6)
     kind = cfg["bifurcation"]["type"]
@@ -173,3 +185,51 @@ def plot_tolerance(path: Path, output: Path) -> Path:
     output.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(output, dpi=150)
     return output
+
+
+# -- registered figures (make figures) ------------------------------------------------------
+def _pd_continuation(outdir: Path) -> Path:
+    """The emulated semi-trivial branch at fe = 2.5 Hz (b1 = b3 = 0) with its period doubling, as a file."""
+    from ..continuation.run import ContinuationConfig, run_continuation, write_json
+
+    path = outdir / "curve-start.json"
+    config = ContinuationConfig("alpha", 10.0, 25.0, {"fe": 2.5, "b1": 0.0, "b3": 0.0}, max_period=1)
+    write_json(run_continuation(config), path)
+    return path
+
+
+@figure("curve_pd_map")
+def curve_pd_map(outdir: Path, quick: bool) -> list[Path]:
+    """The semi-trivial solution's period-doubling curve in (alpha, fe) over a map of the same plane (Fig. 10's range)."""
+    from ..continuation.curve_run import config_from_file, run_curve
+    from ..hopf import fe_for_omega_hat
+    from ..maps import MapConfig, run_map
+    from ..params import TABLE_IV
+
+    smooth = {"b1": 0.0, "b3": 0.0}
+    fe_range = tuple(fe_for_omega_hat(TABLE_IV.replace(**smooth), w) for w in (0.88, 1.12))
+    config = config_from_file(_pd_continuation(outdir), 0, second="fe", start=fe_range[0], stop=fe_range[1],
+                              first_limits=(0.0, 40.0))  # fmt: skip
+    curve = outdir / "curve-pd.parquet"
+    curve.unlink(missing_ok=True)
+    run_curve(config, curve)
+    n = 24 if quick else 120
+    grid = MapConfig("alpha", tuple(np.linspace(0.0, 40.0, n)), "fe", tuple(np.linspace(*fe_range, n)), model=smooth,
+                     max_periods=100 if quick else 600)  # fmt: skip
+    map_path = outdir / "curve-map.parquet"
+    run_map(grid, map_path, overwrite=True, return_rows=False)
+    return [plot_curves([curve, map_path], outdir / f"curve_pd_map{'-quick' if quick else ''}.png")]
+
+
+@figure("tolerance_pd")
+def tolerance_pd(outdir: Path, quick: bool) -> list[Path]:
+    """The hybrid loop's period doubling against the rig's delay, per prediction order (the delay-tolerance figure)."""
+    from ..continuation.tolerance import ToleranceConfig, run_tolerance
+
+    config = ToleranceConfig.from_file(
+        _pd_continuation(outdir), 0, delays=(0.0, 0.03), orders=(1, 2) if quick else (-1, 0, 1, 2, 3),
+        delay_step=0.005 if quick else 2.5e-4,
+    )  # fmt: skip
+    out = outdir / "tolerance-pd.parquet"
+    run_tolerance(config, out, resume=True)
+    return [plot_tolerance(out, outdir / f"tolerance_pd{'-quick' if quick else ''}.png")]
