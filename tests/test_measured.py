@@ -147,6 +147,8 @@ def _bad(tmp_path, kind="forced", edit=None, meta_edit=None, lines=None):
         (dict(lines=lambda text: text.__setitem__(9, text[9] + ",0.5")), "mismatched lengths"),
         (dict(lines=lambda text: text.__setitem__(9, text[9].rsplit(",", 1)[0])), "mismatched lengths"),
         (dict(meta_edit=lambda m: m["params"].__setitem__("l", -1.0)), "l = -1.0 m is outside"),
+        # The displacement logged in mm and declared in m (issue 34's check): beyond any stroke, refused.
+        (dict(edit=lambda d: d.__setitem__("y", 1e3 * d.y)), "column 'y' reaches"),
     ],
 )
 def test_bad_records_exit_2(tmp_path, case, expect):

@@ -49,7 +49,12 @@ is a constant stiffness ``3/4 k3 A^2``. The collinearity is the variance
 inflation factor of the K column against the other one in the regression
 (:data:`SEPARABLE_VIF`); besides the forcing, the frequencies include the
 peaks of the net force (a swinging pendulum's reaction harmonics) where the
-displacement responds above the LVDT's noise.
+displacement responds above the LVDT's noise, looked for with the forcing
+tones taken out (a tone between the spectrum's bins has sidelobes, no peaks
+of their own) and above the quasi-static band (:data:`QUASI_STATIC_INERTIA`:
+there the sensors' drift, not the oscillator). Where the record cannot
+separate stiffness from mass the diagnosis ties them whatever the replays'
+held-out blocks say (``fit.FORCED_TIES``).
 """
 
 from __future__ import annotations
@@ -65,8 +70,10 @@ from scipy.optimize import least_squares
 #: partner's in the regression is below this: the columns are then not multiples of each other, because
 #: the response holds a second frequency (a tone, a sweep, a transient, a driven peak above the noise).
 #: One frequency alone makes them exact multiples: 1e12 (the factor's cap) on every one-tone record seen,
-#: against 2.7e4 with a swinging pendulum's reaction harmonics, 1e3-3e3 with a start-up transient near
-#: the tone and 10-300 with two tones.
+#: against 2.7e4-3.6e4 with a swinging pendulum's reaction harmonics, 1e3-3e3 with a start-up transient
+#: near the tone and 10-300 with two tones. (Before the tones were taken out of the search for other
+#: peaks and quasi-static ones dropped, a steady tone's window sidelobes and the sensors' drift gave
+#: 1e5-1e8 on one tone: separable by the factor, not by the record.)
 SEPARABLE_VIF = 1e8
 #: The K, M, C fitted together start a pair's fit only where the regression is this well conditioned.
 WELL_CONDITIONED_VIF = 1e3
@@ -79,6 +86,13 @@ SWEEP_SHARE = 0.1
 #: A peak of the net force away from the forcing tones counts as a frequency the oscillator responds at
 #: when the displacement's spectrum there exceeds this multiple of the LVDT noise's spectral level.
 DRIVEN_SNR = 10.0
+#: A driven peak counts only where the inertia's share of the nominal dynamic stiffness, ``M_o w^2 / K``, is at
+#: least this (above 0.22 of the natural frequency, 0.47 Hz on the paper's rig). Below it the bin tells the
+#: static stiffness alone, read off quasi-static force and displacement, where both sensors drift (a load
+#: cell's 0.05 N, an LVDT's random walk): a drift in either reads as a stiffness, and on one steady tone a
+#: peak at 0.02-0.15 Hz made stiffness and mass look separable (variance inflation 2e5 instead of 1e12)
+#: while the replays' choice between them followed the drift.
+QUASI_STATIC_INERTIA = 0.05
 #: A transient is fitted when the displacement's departure from its steady tones over the first
 #: TRANSIENT_WINDOW seconds exceeds this multiple of its departure over the record's second half.
 TRANSIENT_RATIO = 5.0
@@ -255,11 +269,21 @@ def identify_oscillator(replay: Any) -> OscillatorIdentification | None:
     t, y = sig.t - sig.t[0], sig.y
     freqs, sweep = _forcing_content(sig.external, replay.dt)
     transient = None
+    # Below this the record's content is quasi-static (:data:`QUASI_STATIC_INERTIA`): the sensors' drift.
+    natural = math.sqrt(nominal["K"] / (nominal["M"] + sig.mass_offset)) / (2 * math.pi)
+    lowest = math.sqrt(QUASI_STATIC_INERTIA) * natural
     if sweep is None:
         forcing = len(freqs)
-        net = sum(factor * (2j * math.pi * np.fft.rfftfreq(len(y), replay.dt)) ** power * _spectrum(signal)
+        # Other frequencies are looked for with the forcing tones taken out of every signal (least squares
+        # sines): the window's sidelobes of a tone that does not fall on a bin are no peaks of their own.
+        tone_basis = _sines(t, freqs)
+
+        def detoned(x: np.ndarray) -> np.ndarray:
+            return x - tone_basis @ np.linalg.lstsq(tone_basis, x, rcond=None)[0]
+
+        net = sum(factor * (2j * math.pi * np.fft.rfftfreq(len(y), replay.dt)) ** power * _spectrum(detoned(signal))
                   for signal, factor, power in sig.driving)  # fmt: skip
-        freqs = freqs + _driven_peaks(net, _spectrum(y), freqs, replay.dt, sig.noise)
+        freqs = freqs + _driven_peaks(net, _spectrum(detoned(y)), freqs, replay.dt, sig.noise, lowest)
         basis, transient = _response_basis(t, y, freqs, sig.noise)
         # Complex frequencies p of the basis's components: i w at the tones, -s + i w of a transient.
         p = 2j * math.pi * np.array(freqs, dtype=complex)
@@ -283,9 +307,13 @@ def identify_oscillator(replay: Any) -> OscillatorIdentification | None:
     else:
         tones = []
         spectrum_f = _spectrum(sig.external)
+        bins = np.fft.rfftfreq(len(y), replay.dt)
         band = np.abs(spectrum_f) >= SWEEP_SHARE * np.max(np.abs(spectrum_f[1:]))
         band[0] = False
-        omega = 2 * math.pi * np.fft.rfftfreq(len(y), replay.dt)[band]
+        if np.any(band & (bins >= lowest)):
+            band &= bins >= lowest  # a drifting load cell's quasi-static bins are no part of the sweep
+            sweep = (float(bins[band].min()), float(bins[band].max()))
+        omega = 2 * math.pi * bins[band]
         response = _spectrum(y)[band]
         target = sum(factor * (1j * omega) ** power * _spectrum(signal)[band] for signal, factor, power in sig.driving)
         columns = {
@@ -396,9 +424,9 @@ def _forcing_content(force: np.ndarray, dt: float) -> tuple[list[float], tuple[f
     found = []
     for i in range(1, len(spectrum) - 1):
         if spectrum[i] >= TONE_SHARE * peak and spectrum[i] >= spectrum[i - 1] and spectrum[i] > spectrum[i + 1]:
-            a, b, c = np.log(spectrum[i - 1 : i + 2])
-            shift = 0.5 * (a - c) / (a - 2 * b + c) if a - 2 * b + c < 0 else 0.0
-            found.append(float((i + shift) * (freqs[1] - freqs[0])))
+            found.append(float((i + _peak_shift(spectrum[i - 1 : i + 2])) * (freqs[1] - freqs[0])))
+    # A peak's refinement never yields a frequency the basis cannot hold (no NaN reaches the least squares).
+    found = [f for f in found if math.isfinite(f) and f > 0.0]
     t = np.arange(len(force)) * dt
     basis = _sines(t, found)
     x = force - np.mean(force)
@@ -410,10 +438,14 @@ def _forcing_content(force: np.ndarray, dt: float) -> tuple[list[float], tuple[f
     return found, None
 
 
-def _driven_peaks(net: np.ndarray, response: np.ndarray, tones: list[float], dt: float, noise: float) -> list[float]:
+def _driven_peaks(
+    net: np.ndarray, response: np.ndarray, tones: list[float], dt: float, noise: float, lowest: float = 0.0
+) -> list[float]:
     """Frequencies [Hz] other than the forcing tones where the net force peaks and drives a displacement
     :data:`DRIVEN_SNR` times above the LVDT noise's level in the spectrum: the pendulum's reaction at the
-    harmonics of its swing (or a load cell's content), a second frequency the oscillator responds at."""
+    harmonics of its swing (or a load cell's content), a second frequency the oscillator responds at.
+    Quasi-static peaks, below ``lowest`` [Hz] (:data:`QUASI_STATIC_INERTIA`), are the sensors' drift as
+    much as a response: not counted."""
     n = 2 * (len(net) - 1)
     df = 1.0 / (n * dt)
     floor = DRIVEN_SNR * noise * math.sqrt(float(np.sum(np.hanning(n) ** 2)))
@@ -427,13 +459,27 @@ def _driven_peaks(net: np.ndarray, response: np.ndarray, tones: list[float], dt:
     if not floor > 0:  # a displacement without noise of its own: no level to stand out from
         return found
     for i in range(1, len(net) - 1):
-        if near_tone[i] or not (magnitude[i] >= magnitude[i - 1] and magnitude[i] > magnitude[i + 1]):
+        if near_tone[i] or i * df < lowest:
+            continue
+        if not (magnitude[i] >= magnitude[i - 1] and magnitude[i] > magnitude[i + 1]):
             continue
         if abs(response[i]) >= floor:
-            a, b, c = np.log(magnitude[i - 1 : i + 2])
-            shift = 0.5 * (a - c) / (a - 2 * b + c) if a - 2 * b + c < 0 else 0.0
-            found.append(float((i + shift) * df))
-    return found
+            found.append(float((i + _peak_shift(magnitude[i - 1 : i + 2])) * df))
+    return [f for f in found if math.isfinite(f) and f > 0.0]
+
+
+def _peak_shift(three: np.ndarray) -> float:
+    """Offset [bins] of a spectral peak from its bin ``i``, by a parabola through the log magnitudes at
+    ``i - 1, i, i + 1``; 0 where a neighbour is zero (the zeroed mean's bin next to a peak at bin 1), a
+    magnitude is not finite, or the parabola does not open downwards. Within half a bin."""
+    if not (np.all(np.isfinite(three)) and np.all(three > 0.0)):
+        return 0.0
+    a, b, c = np.log(three)
+    curvature = a - 2.0 * b + c
+    if not curvature < 0.0:
+        return 0.0
+    shift = 0.5 * (a - c) / curvature
+    return float(np.clip(shift, -0.5, 0.5)) if math.isfinite(shift) else 0.0
 
 
 def _sines(t: np.ndarray, freqs: list[float]) -> np.ndarray:

@@ -57,6 +57,9 @@ REST_LEVEL_SIGMA = ENCODER_RESOLUTION / math.sqrt(12.0)
 
 #: Channels compared per kind.
 CHANNELS = {"free_decay": ("theta",), "forced": ("y", "theta"), "substructured": ("y", "theta", "y_cmd", "Fs")}
+#: Largest platform displacement a record may hold [m]: the rig's stroke is centimetres, so a larger one
+#: is a unit error (millimetres read as metres).
+MAX_STROKE = 1.0
 #: Default short-horizon segment length for forced records [s].
 DEFAULT_HORIZON = 4.0
 #: Cross-validation folds and contiguous blocks per fold.
@@ -126,6 +129,21 @@ def smooth_window(n: int, dt: float) -> int:
     return min(w, n - 1 + n % 2)
 
 
+def check_displacement_units(record: Record) -> None:
+    """Refuse a displacement column the record's kind compares that reaches beyond any stroke of the rig
+    (:data:`MAX_STROKE`): millimetres read as metres, which a replay would otherwise fit as an effect."""
+    for col in ("y", "y_cmd"):
+        if col not in CHANNELS.get(record.kind, ()) or col not in record.data:
+            continue
+        reach = float(np.max(np.abs(record.channel(col))))
+        if reach > MAX_STROKE:
+            raise ConfigError(
+                f"{record.name}: column {col!r} reaches {reach:.3g} m, beyond any actuator stroke of this rig "
+                f"({MAX_STROKE:g} m): millimetres read as metres? Declare its unit in the metadata's columns, "
+                f'e.g. {{"{col}": {{"unit": "mm"}}}}'
+            )
+
+
 def smoothed(x: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """Cubic Savitzky-Golay estimates of ``x`` and its derivative [unit/s]."""
     w = smooth_window(len(x), dt)
@@ -182,6 +200,7 @@ class Replay:
         if record.kind not in CHANNELS:
             raise ConfigError(f"kind {record.kind!r} cannot be replayed yet; supported kinds: {', '.join(CHANNELS)}")
         self.kind = record.kind
+        check_displacement_units(record)
         # Substructured: the first samples replay commands from before the record (unknown).
         start = int(math.ceil(COMMAND_HISTORY / record.dt)) if self.kind == "substructured" else 0
         self._compare(record, CHANNELS[record.kind], folds, start)

@@ -42,7 +42,7 @@ from scipy.optimize import least_squares
 
 from ..errors import ConfigError
 from ..kernels._measured import transfer_trace
-from .replay import noise_std
+from .replay import MAX_STROKE, noise_std
 
 #: Transfer models by name: (order of the servo, names of the nonlinear parameters).
 MODELS = {
@@ -67,9 +67,6 @@ FREE_RESPONSE_FLOOR = 1e-3
 BLOCK_SECONDS = 1.0
 #: A more complex model is selected only when its held-out mean square beats the simpler one's by this share.
 SELECT_MARGIN = 0.05
-#: Largest platform displacement a record may command [m]: the rig's stroke is centimetres, so a
-#: larger one is a unit error (millimetres read as metres).
-MAX_STROKE = 1.0
 #: Servo rates tried as starts [Hz] (the fit keeps the best).
 RATE_STARTS_HZ = (8.0, 40.0, 200.0)
 
