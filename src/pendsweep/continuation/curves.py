@@ -19,6 +19,7 @@ they locate are in :mod:`.curve_system`.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -27,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from .algebra import newton, null_tangent
-from .curve_system import CurveEnded, CurveProblem, _pair_turned_real, event_name
+from .curve_system import CurveEnded, CurveProblem, _pair_turned_real, event_name, initial_reference
 from .problem import _STEP_FAILURES, NEIMARK_SACKER, ContinuationError
 
 
@@ -104,6 +105,11 @@ class CurveContinuation:
     ):
         self.cp = curve_problem
         self.settings = settings or CurveSettings()
+        # A finite-difference monodromy (the hybrid loop's) knows its multipliers only so well: Newton's
+        # tolerance is kept ten times above that floor, or it stalls at it.
+        floor = 10.0 * getattr(curve_problem.problem, "multiplier_precision", 0.0)
+        if self.settings.newton_tol < floor:
+            self.settings = dataclasses.replace(self.settings, newton_tol=floor)
         self.bounds = (tuple(sorted(bounds1)), tuple(sorted(bounds2)))
         self.direction = 1.0 if bounds2[1] >= bounds2[0] else -1.0
         self.names = names
@@ -198,7 +204,8 @@ class CurveContinuation:
             same = [b for b in result.bifurcations if b.kind == self.cp.kind]
             if same:
                 nearest = min(same, key=lambda b: abs(b.lam - lam1))
-                return self.start(nearest.x, nearest.lam, lam2, reference)
+                # the located point's own critical multiplier: the loop's pair may sit at another angle
+                return self.start(nearest.x, nearest.lam, lam2, initial_reference(self.cp.kind, nearest.multipliers))
         raise failure
 
     # .. the march ..

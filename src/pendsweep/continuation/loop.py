@@ -101,6 +101,9 @@ SMOOTHED_OFF = ("force_noise", "lvdt_noise", "encoder_resolution", "lvdt_resolut
 
 #: Relative finite-difference step of the monodromy (times each slot's scale).
 FD_STEP = 1e-6
+#: Precision of a multiplier of the finite-difference monodromy (truncation h^2 plus round-off eps/h):
+#: the floor below which Newton on a curve's defining system cannot go (:mod:`.curves`).
+MULTIPLIER_PRECISION = 1e-8
 
 
 def smoothed_backend(backend: SubstructuredBackend) -> SubstructuredBackend:
@@ -207,6 +210,7 @@ class LoopShooting:
         self.live = live_slots(backend, settings)
         self.scale = slot_scales(settings, params, self.length)[self.live]
         self.theta = int(np.flatnonzero(self.live == S_THETA)[0])
+        self.multiplier_precision = MULTIPLIER_PRECISION
 
     def _lam0(self) -> float:
         source = self.backend if self.parameter in LOOP_PARAMETERS else self.params

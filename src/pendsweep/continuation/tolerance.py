@@ -21,8 +21,10 @@ Result (``kind = "tolerance"``): one row per delay and order, with
 hold and servo lag at the forcing frequency, what the predictor
 compensates), the bifurcation's value, ``shift`` (relative to the emulated
 value), ``others_max`` (the largest modulus among the orbit's *other*
-multipliers) and ``loop_stable`` (``others_max < 1``: the hybrid loop
-itself is stable on this orbit, otherwise no test could hold it there),
+multipliers), ``unstable_others`` (how many of them lie outside the unit
+circle) and ``loop_stable`` (no more than the emulated orbit has at its
+bifurcation: the hybrid loop adds no instability of its own; otherwise no
+test could hold the rig on this orbit),
 with the curve's other columns (:mod:`.curve_run`). The metadata's
 ``limits`` give, per order, the largest transport delay up to which
 ``|shift| <= within`` holds on a stable loop from the shortest delay on
@@ -215,6 +217,12 @@ def trace_order(
             rows = stored.to_dict("records")
     grid = delay_grid(config)
     points: list[Any] = []
+    bif = config.bifurcation
+    emulated = np.array([complex(*m) for m in bif.get("multipliers", [])])
+    reference_unstable = 0
+    if emulated.size:
+        critical = emulated[np.argmin(np.abs(emulated - _reference_critical(bif["type"], emulated)))]
+        reference_unstable = int(np.sum(np.abs(_others(emulated, critical, bif["type"])) > 1.0))
     bar = progress_bar(progress, total=grid.size, unit="delay", desc=f"order {order}")
     bar.update(len(rows))
     end = "range"
@@ -227,9 +235,12 @@ def trace_order(
                 break
             points.append(point)
             row = _row(len(rows), point, 1, cp, curve_config)
-            others = np.delete(point.multipliers, int(np.argmin(np.abs(point.multipliers - point.critical))))
+            others = _others(point.multipliers, point.critical, curve_config.kind)
             row["others_max"] = float(np.abs(others).max())
-            row["loop_stable"] = bool(row["others_max"] < 1.0)
+            row["unstable_others"] = int(np.sum(np.abs(others) > 1.0))
+            # The loop is stable when its orbit has no unstable multiplier the emulated orbit lacks: the
+            # rotation is itself unstable at its fold (a complex pair outside), the semi-trivial PD is not.
+            row["loop_stable"] = bool(row["unstable_others"] <= reference_unstable)
             rows.append(row)
             atomic_write_table(with_metadata(pd.DataFrame(rows), meta | {"end": ""}), output)
             bar.update(1)
@@ -238,6 +249,22 @@ def trace_order(
     frame = pd.DataFrame(rows)
     atomic_write_table(with_metadata(frame, meta | {"end": end}), output)
     return frame, end
+
+
+def _reference_critical(kind: str, multipliers: np.ndarray) -> complex:
+    from .curve_system import initial_reference
+
+    return initial_reference(kind, multipliers)
+
+
+def _others(multipliers: np.ndarray, critical: complex, kind: str) -> np.ndarray:
+    """The multipliers but the critical one (and its conjugate on a Neimark-Sacker curve)."""
+    drop = [int(np.argmin(np.abs(multipliers - critical)))]
+    if kind == "neimark-sacker":
+        drop.append(
+            int(np.argmin(np.abs(multipliers - np.conj(critical)) + 1e9 * (np.arange(multipliers.size) == drop[0])))
+        )
+    return np.delete(multipliers, drop)
 
 
 def _solve_at(cc, cp, curve_config, rows, points, tau: float):

@@ -17,7 +17,7 @@ from matplotlib.colors import ListedColormap
 from matplotlib.patches import Patch
 
 from ..continuation.run import parameter_unit
-from ..errors import ConfigError
+from ..errors import ConfigError, RunFailure
 from ..maps import MapConfig, hopf_boundaries
 from ..plotting import legend_below, new_figure
 from ..results import read_results
@@ -144,6 +144,8 @@ def plot_tolerance(path: Path, output: Path) -> Path:
     rows, meta = read_results(path)
     if meta.get("kind") != "tolerance":
         raise ConfigError(f"{str(path)!r} is not a tolerance result")
+    if rows.empty:
+        raise RunFailure(f"{str(path)!r} holds no point: no order found its bifurcation in the loop (see its ends)")
     cfg = meta["config"]
     within = cfg["within"]
     fig = new_figure((6.4, 4.8))
