@@ -468,3 +468,14 @@ def test_cli_tolerance_pure_delay_shifts_grow_from_the_dt_limit(continuation_fil
     limit = meta["limits"]["-1"]
     assert (limit is None) == (abs(rows["shift"].iloc[0]) > 0.01)
     assert "no prediction" in result.output
+
+
+def test_within_spans_finds_every_interval_on_a_stable_loop():
+    from pendsweep.continuation.tolerance import within_spans
+
+    delays = np.array([0.0, 1.0, 2.0, 3.0, 4.0, 5.0])
+    shifts = np.array([0.03, 0.02, 0.0, 0.0, 0.02, 0.0])
+    ok = np.array([True, True, True, True, True, False])
+    spans = within_spans(delays, shifts, 0.01, ok)
+    assert spans == [pytest.approx((1.5, 3.5))]
+    assert within_spans(delays, np.zeros(6), 0.01, np.ones(6, bool)) == [(0.0, 5.0)]

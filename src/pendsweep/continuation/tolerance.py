@@ -29,7 +29,9 @@ with the curve's other columns (:mod:`.curve_run`). The metadata's
 ``limits`` give, per order, the largest transport delay up to which
 ``|shift| <= within`` holds on a stable loop from the shortest delay on
 (linear interpolation between points; ``null`` when even the shortest
-delay fails), and ``ends`` why each order's grid stopped. Each order's
+delay fails), ``intervals`` every such span of delays (a bifurcation may
+come back into tolerance at longer delays), and ``ends`` why each order's
+grid stopped. Each order's
 grid is also kept beside the result (``STEM.order-K.parquet``),
 checkpointed after every point and resumable.
 """
@@ -176,6 +178,29 @@ def within_limit(delays: np.ndarray, shifts: np.ndarray, within: float, ok: np.n
     return float(delays[-1])
 
 
+def within_spans(delays: np.ndarray, shifts: np.ndarray, within: float, ok: np.ndarray) -> list[tuple[float, float]]:
+    """Every interval of delays [s] where ``|shift| <= within`` on a stable loop (``ok``), ends interpolated.
+
+    A span entered or left between two points of which one fails ``ok`` ends at the stable point.
+    """
+    inside = (np.abs(shifts) <= within) & np.asarray(ok, dtype=bool)
+    spans, start = [], None
+
+    def crossing(i: int) -> float:  # where |shift| crosses ``within`` between points i and i + 1
+        a, b = abs(shifts[i]), abs(shifts[i + 1])
+        if not (ok[i] and ok[i + 1]) or a == b:
+            return float(delays[i] if inside[i] else delays[i + 1])
+        return float(delays[i] + (within - a) / (b - a) * (delays[i + 1] - delays[i]))
+
+    for i in range(delays.size):
+        if inside[i] and start is None:
+            start = float(delays[0]) if i == 0 else crossing(i - 1)
+        if start is not None and (i == delays.size - 1 or not inside[i + 1]):
+            spans.append((start, float(delays[i]) if i == delays.size - 1 else crossing(i)))
+            start = None
+    return spans
+
+
 def delay_grid(config: ToleranceConfig) -> np.ndarray:
     """The transport delays [s] each order's bifurcation is solved at: ``--delay-from`` to ``--delay-to`` by ``--delay-step``."""
     lo, hi = config.delays
@@ -301,7 +326,7 @@ def run_tolerance(
     reference = float(config.bifurcation["value"])
     unit = parameter_unit(config.parameter)
     fe = ModelParams.from_mapping(config.continuation["model"]).fe
-    frames, limits, ends, lines = [], {}, {}, []
+    frames, limits, intervals, ends, lines = [], {}, {}, {}, []
     kind = config.bifurcation["type"]
     lines.append(f"emulated {kind} at {config.parameter} = {reference:.6g} {unit}")
     for order in config.orders:
@@ -341,6 +366,11 @@ def run_tolerance(
             at = float(np.interp(limit, delays, rows["effective_delay"]))
             covered = limit >= delays[-1] - 1e-12
             text += f"within {100 * config.within:g} % {'at every delay to' if covered else 'up to'} {1e3 * limit:.2f} ms ({1e3 * at:.2f} ms effective at {fe:g} Hz)"
+        spans = within_spans(delays, rows["shift"].to_numpy(), config.within, rows["loop_stable"].to_numpy())
+        intervals[str(order)] = spans
+        later = [(a, b) for a, b in spans if limit is None or a > limit + 1e-12]
+        if later:
+            text += "; within it again for " + ", ".join(f"{1e3 * a:.2f}-{1e3 * b:.2f} ms" for a, b in later)
         if not unstable.empty:
             text += f"; the loop itself is unstable from {1e3 * unstable['transport_delay'].iloc[0]:.3g} ms"
         if end != "range":
@@ -348,6 +378,8 @@ def run_tolerance(
         lines.append(text)
     summary = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
     summary = summary.drop(columns=[c for c in ("u", "tangent", "vector", "step", "march") if c in summary])
-    meta = run_metadata("tolerance", config.to_dict(), limits=limits, ends=ends, reference=reference)
+    meta = run_metadata(
+        "tolerance", config.to_dict(), limits=limits, intervals=intervals, ends=ends, reference=reference
+    )
     atomic_write_table(with_metadata(summary, meta), output)
     return {"lines": lines, "limits": limits, "rows": summary}
