@@ -15,7 +15,7 @@ from ..errors import ConfigError, ParameterError
 from ..params import PARAM_SPECS
 from ..scan import per_start_max_work
 from ._app import ANGLE, FINITE, RATE, SEED, LazyChoice, main
-from ._checks import FIGURE_SUFFIXES, check_output, key_values
+from ._checks import FIGURE_SUFFIXES, backend_option, check_output, key_values
 from ._executor import apply_options, checkpoint_option, executor_options, max_work, work_options
 from ._sweep_options import DEVICE_OPTION, load_model_file
 
@@ -172,14 +172,7 @@ def _progress(flag: bool | None) -> bool:
     show_default=True,
     help="Simulation backend (substructured: with its noise, one start at a time).",
 )
-@click.option(
-    "-B",
-    "--backend-option",
-    "backend_opts",
-    multiple=True,
-    metavar="KEY=VALUE",
-    help="Backend option, e.g. -B force_noise=0.3.",
-)
+@backend_option("e.g. -B force_noise=0.3.")
 @click.option("--dt", type=FINITE, default=None, help="Integration / controller step [s] (default 0.001).")
 @DEVICE_OPTION
 @click.option(

@@ -12,6 +12,15 @@ from ..errors import ConfigError
 FIGURE_SUFFIXES = (".png", ".pdf", ".svg")
 
 
+def backend_option(example: str):
+    """The ``-B/--backend-option KEY=VALUE`` option (repeatable, into ``backend_opts``), with an example."""
+    import click
+
+    return click.option(
+        "-B", "--backend-option", "backend_opts", multiple=True, metavar="KEY=VALUE", help=f"Backend option, {example}"
+    )
+
+
 def check_output(path: Path | None, option: str, suffixes: Iterable[str] = ()) -> Path | None:
     """Refuse an output file that could not be written, before any work starts.
 

@@ -9,7 +9,7 @@ import click
 
 from ..errors import ConfigError
 from ._app import FINITE, LazyChoice, main
-from ._checks import FIGURE_SUFFIXES, check_output, key_values, model_sets
+from ._checks import FIGURE_SUFFIXES, backend_option, check_output, key_values, model_sets
 from ._executor import apply_options, work_options
 from ._executor import max_work as work_limit
 from ._sweep import read_sweep_metadata
@@ -152,14 +152,7 @@ def _deprecated_json(value: Path | None) -> Path | None:
     show_default=True,
     help="Whose orbits: Eq. (11), or the simulated hybrid test's tick map (noise and quantisation off).",
 )
-@click.option(
-    "-B",
-    "--backend-option",
-    "backend_opts",
-    multiple=True,
-    metavar="KEY=VALUE",
-    help="Substructured backend option, as for sweeps, e.g. -B transport_delay=0.02 -B predictor_order=2.",
-)
+@backend_option("as for sweeps, e.g. -B transport_delay=0.02 -B predictor_order=2 (--backend substructured).")
 @click.option(
     "--progress/--no-progress", default=None, help="Progress bar on stderr (default: when stderr is a terminal)."
 )
@@ -264,6 +257,16 @@ def continue_command(
         swept = read_sweep_metadata(sweep, "--overlay")["config"].get("parameter")
         if swept != parameter:
             raise ConfigError(f"--overlay {str(sweep)!r} sweeps {swept!r}, not {parameter!r}")
+    if backend != "emulated":
+        from ..continuation.loop import SMOOTHED_OFF
+
+        dropped = [name for name in SMOOTHED_OFF if name in config.backend_options]
+        if dropped:
+            click.echo(
+                f"Note: {', '.join(dropped)} switched off: a continued loop is noise-free and exact "
+                "(recorded in the result's config.smoothing)",
+                err=True,
+            )
     progress = sys.stderr.isatty() if progress is None else progress
     try:
         doc = run_continuation(config, progress=progress)

@@ -9,7 +9,7 @@ import click
 
 from ..errors import ConfigError
 from ._app import FINITE, main
-from ._checks import FIGURE_SUFFIXES, check_output, key_values
+from ._checks import FIGURE_SUFFIXES, backend_option, check_output, key_values
 
 _PROGRESS = click.option(
     "--progress/--no-progress", default=None, help="Progress bar on stderr (default: when stderr is a terminal)."
@@ -112,6 +112,12 @@ def curve_command(
         output or Path(f"results/curve-{config.first}-{second}.parquet"), "-o/--output", (".parquet",)
     )
     check_output(plot_path, "--plot", FIGURE_SUFFIXES)
+    if overlays:
+        if plot_path is None:
+            raise ConfigError("--overlay draws under --plot: give --plot FILE too")
+        from ..figures.curves import check_overlays
+
+        check_overlays((config.first, second), list(overlays))
     progress = sys.stderr.isatty() if progress is None else progress
     try:
         rows = run_curve(config, output, progress=progress, resume=resume)
@@ -153,16 +159,10 @@ def curve_command(
     show_default=True,
     help="Prediction orders to compare, comma-separated (-1: none, 0-4: polynomial order).",
 )
-@click.option(
-    "-B",
-    "--backend-option",
-    "backend_opts",
-    multiple=True,
-    metavar="KEY=VALUE",
-    help="The loop's other options (servo, filter, ...), as for sweeps.",
-)
+@backend_option("the loop's other options (servo, filter, ...), as for sweeps.")
 @click.option("--delay-step", type=FINITE, default=2.5e-4, show_default=True,
-              help="Spacing of the delay grid [s] (a quarter tick resolves the within-tick ripple).")  # fmt: skip
+              help="Spacing of the delay grid [s]; the limit is interpolated on it, and the loop's ripple "
+                   "within a tick needs a quarter tick or less.")  # fmt: skip
 @click.option("--tol", "newton_tol", type=FINITE, default=1e-9, show_default=True,
               help="Newton tolerance on the scaled update and residual [-].")  # fmt: skip
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), default=None,

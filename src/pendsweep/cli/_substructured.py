@@ -11,6 +11,7 @@ from ..params import ModelParams
 from ._app import ANGLE, FINITE, PATH, RATE, FiniteFloat, LazyChoice, main
 from ._checks import (
     FIGURE_SUFFIXES,
+    backend_option,
     check_input,
     check_memory,
     check_output,
@@ -58,14 +59,7 @@ TRACE_BYTES_PER_ROW = 400
     show_default=True,
     help="Simulation backend.",
 )
-@click.option(
-    "-B",
-    "--backend-option",
-    "backend_opts",
-    multiple=True,
-    metavar="KEY=VALUE",
-    help="Backend option, e.g. -B transport_delay=0.02 -B predictor_order=-1 (see docs/substructured.md).",
-)
+@backend_option("e.g. -B transport_delay=0.02 -B predictor_order=-1 (see docs/substructured.md).")
 @click.option(
     "--periods",
     type=click.IntRange(1, 100000),

@@ -100,3 +100,23 @@ def test_functions(multipliers: np.ndarray) -> dict[str, float]:
         PERIOD_DOUBLING: float(np.prod(mu + 1.0).real),
         NEIMARK_SACKER: float(np.prod(pairs).real) if pairs else 1.0,
     }
+
+
+def falsi_point(lo: float, hi: float, f_lo: float, f_hi: float) -> float:
+    """The regula falsi trial inside the bracket ``(lo, hi)`` (its midpoint when the secant leaves it)."""
+    s = hi - f_hi * (hi - lo) / (f_hi - f_lo) if f_hi != f_lo else 0.5 * (lo + hi)
+    return s if lo < s < hi else 0.5 * (lo + hi)
+
+
+def illinois_update(lo: float, hi: float, f_lo: float, f_hi: float, s: float, f: float, side: int):
+    """The bracket after a trial ``(s, f)``; the end kept twice in a row has its value halved (Illinois).
+
+    Returns ``(lo, hi, f_lo, f_hi, side)``, ``side`` -1 when ``lo`` moved last, +1 when ``hi`` did.
+    """
+    if np.sign(f) == np.sign(f_lo):
+        if side == -1:
+            f_hi *= 0.5
+        return s, hi, f, f_hi, -1
+    if side == 1:
+        f_lo *= 0.5
+    return lo, s, f_lo, f, 1

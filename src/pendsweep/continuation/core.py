@@ -59,7 +59,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .algebra import _Scaled, newton, null_tangent, test_functions
+from .algebra import _Scaled, falsi_point, illinois_update, newton, null_tangent, test_functions
 from .problem import (
     _STEP_FAILURES,
     BRANCH_POINT,
@@ -366,7 +366,7 @@ class Continuation:
         for _ in range(60):
             if hi - lo < self.settings.locate_tol:
                 break
-            s = hi - f_hi * (hi - lo) / (f_hi - f_lo) if f_hi != f_lo else 0.5 * (lo + hi)
+            s = falsi_point(lo, hi, f_lo, f_hi)
             if retry is not None:
                 s, retry = retry, None
             if not (lo < s < hi):
@@ -389,16 +389,7 @@ class Continuation:
             ends[s] = (abs(f), best)
             if f == 0.0:
                 break
-            if np.sign(f) == np.sign(f_lo):
-                lo, f_lo = s, f
-                if side == -1:
-                    f_hi *= 0.5
-                side = -1
-            else:
-                hi, f_hi = s, f
-                if side == 1:
-                    f_lo *= 0.5
-                side = 1
+            lo, hi, f_lo, f_hi, side = illinois_update(lo, hi, f_lo, f_hi, s, f, side)
         return s, best
 
     # .. start, both directions, branch switching ..

@@ -27,7 +27,7 @@ equations in ``n + 2`` unknowns:
 
 ``(dA) v`` along each unknown is a mixed second difference of ``G``
 (:data:`SECOND_STEP`): 4 map evaluations per unknown (8 for a complex
-``v``), whatever the state's dimension, so the hybrid loop's 31-slot state
+``v``), whatever the state's dimension, so the hybrid loop's 29-slot state
 costs no more than a few monodromies. ``G``'s own Jacobian is the
 problem's monodromy; its parameter columns are central differences
 (one-sided on a parameter's bound, e.g. a delay of 0).

@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from .algebra import newton, null_tangent
+from .algebra import falsi_point, illinois_update, newton, null_tangent
 from .curve_system import CurveEnded, CurveProblem, _pair_turned_real, event_name, initial_reference
 from .problem import _STEP_FAILURES, NEIMARK_SACKER, ContinuationError
 
@@ -318,9 +318,7 @@ class CurveContinuation:
         for _ in range(40):
             if hi - lo < self.settings.locate_tol:
                 break
-            s = hi - f_hi * (hi - lo) / (f_hi - f_lo) if f_hi != f_lo else 0.5 * (lo + hi)
-            if not lo < s < hi:
-                s = 0.5 * (lo + hi)
+            s = falsi_point(lo, hi, f_lo, f_hi)
             u, ok, _ = self.correct(prev.u + s * prev.tangent, prev.tangent, prev.critical)
             if not ok:
                 return best if hi - lo < 0.1 * ds else None
@@ -331,16 +329,7 @@ class CurveContinuation:
             f = best.tests[test]
             if f == 0.0:
                 break
-            if np.sign(f) == np.sign(f_lo):
-                lo, f_lo = s, f
-                if side == -1:
-                    f_hi *= 0.5
-                side = -1
-            else:
-                hi, f_hi = s, f
-                if side == 1:
-                    f_lo *= 0.5
-                side = 1
+            lo, hi, f_lo, f_hi, side = illinois_update(lo, hi, f_lo, f_hi, s, f, side)
         return best
 
     @staticmethod

@@ -28,7 +28,7 @@ integrators, a delay line and a predictor, and variational equations of
 all of them would duplicate the kernel. The error of a central difference
 is ``O(h^2)`` truncation plus ``O(eps/h)`` round-off, about 1e-9 relative
 here, far below the continuation's tolerances. It costs ``2 m`` loop runs
-over ``k`` periods for ``m`` live slots (31 with the defaults, 10 ms delay).
+over ``k`` periods for ``m`` live slots (29 with the defaults, 10 ms delay).
 
 Smoothing (what the record says)
 --------------------------------
@@ -244,6 +244,9 @@ class LoopShooting:
         else:
             params = params.replace(**{self.parameter: lam})
         dt = 1.0 / (params.fe * self.steps)
+        # The backend at the tick actually used (fe continued: dt = 1/(fe n) drifts), so that its matched
+        # prediction horizon and hold delay are those of this tick, as a sweep at this fe would have them.
+        backend = dataclasses.replace(backend, dt=dt)
         if self.n_cmd < int(math.ceil(backend.transport_delay / dt)) + 3:
             raise ConfigError(
                 f"transport_delay = {backend.transport_delay:g} s is longer than the delay line of "

@@ -62,6 +62,8 @@ def parameter_unit(parameter: str) -> str:
 
 #: RK4 systems a shooting evaluation integrates: the orbit and its four variational directions.
 VARIATIONAL_SYSTEMS = 5
+#: Corrector evaluations per point counted for the hybrid loop's work estimate (Newton converges in 2-4).
+TYPICAL_CORRECTOR_ITERATIONS = 3
 
 
 @dataclass(frozen=True)
@@ -254,6 +256,9 @@ class ContinuationConfig:
         problem = self.problem()
         if self.backend == "emulated":
             return Work(evaluations, periods * VARIATIONAL_SYSTEMS, float(problem.steps))
+        # The loop's corrector evaluations: a typical 3 per point rather than the bound of max_iterations,
+        # because each is 2m + 1 whole-loop runs (the bound refused runs of 10 s by default).
+        evaluations = 2 * self.max_points * TYPICAL_CORRECTOR_ITERATIONS
         runs = 2 * problem.live.size + 1
         return Work(evaluations, periods * runs, float(problem.steps * (1 + problem.backend.physics_substeps)))
 

@@ -101,6 +101,8 @@ class ToleranceConfig:
             raise ConfigError(f"--orders: {bad[0] if bad else 'none'}; accepted -1 (none) to {MAX_PREDICTOR_ORDER}")
         if len(set(self.orders)) != len(self.orders):
             raise ConfigError(f"--orders {','.join(map(str, self.orders))}: each order once")
+        if "dt" in self.backend_options:
+            raise ConfigError("-B dt: the controller step is START's (`continue --dt`); continue again at another step")
         fixed = sorted(set(self.backend_options) & set(STUDIED_OPTIONS))
         if fixed:
             raise ConfigError(f"-B {fixed[0]}: the study sets it (--delay-from/--delay-to, --orders; matched horizon)")

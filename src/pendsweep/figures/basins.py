@@ -148,25 +148,15 @@ def plot_scan(summary: dict[str, Any], output: Path) -> Path:
     return output
 
 
-def plot_map(rows: pd.DataFrame, config: MapConfig, boundaries: pd.DataFrame | None, output: Path) -> Path:
-    """Motion class and settled max |theta| over the grid, with the Eq. (12) and Floquet boundaries."""
+def draw_map_classes(ax, rows: pd.DataFrame, config: MapConfig, alpha: float = 1.0) -> tuple[list[str], list[float]]:
+    """The map's motion classes as an image on ``ax``; returns the classes shown and the image's extent."""
     nx, ny = len(config.x_values), len(config.y_values)
     grid = rows.sort_values(["ix", "iy"])
     labels = grid["motion"].to_numpy().reshape(nx, ny).T
     present = [c for c in CLASS_COLOURS if (labels == c).any()] + sorted(set(labels.ravel()) - set(CLASS_COLOURS))
     code = np.vectorize({c: i for i, c in enumerate(present)}.get)(labels)
-    swing = grid["theta_absmax"].to_numpy().reshape(nx, ny).T
-
-    def edges(v):
-        v = np.asarray(v)
-        if v.size == 1:
-            return [v[0] - 0.5, v[0] + 0.5]
-        return [v[0] - (v[1] - v[0]) / 2, v[-1] + (v[-1] - v[-2]) / 2]
-
-    extent = edges(config.x_values) + edges(config.y_values)
-    fig = new_figure((12, 4.8))
-    axes = fig.subplots(1, 2)
-    axes[0].imshow(
+    extent = _edges(config.x_values) + _edges(config.y_values)
+    ax.imshow(
         code,
         origin="lower",
         aspect="auto",
@@ -175,7 +165,26 @@ def plot_map(rows: pd.DataFrame, config: MapConfig, boundaries: pd.DataFrame | N
         cmap=ListedColormap([_colour(c) for c in present]),
         vmin=-0.5,
         vmax=len(present) - 0.5,
+        alpha=alpha,
     )
+    return present, extent
+
+
+def _edges(values) -> list[float]:
+    """Outer edges of a grid of cell centres (a single value: a unit-wide cell)."""
+    v = np.asarray(values)
+    if v.size == 1:
+        return [v[0] - 0.5, v[0] + 0.5]
+    return [v[0] - (v[1] - v[0]) / 2, v[-1] + (v[-1] - v[-2]) / 2]
+
+
+def plot_map(rows: pd.DataFrame, config: MapConfig, boundaries: pd.DataFrame | None, output: Path) -> Path:
+    """Motion class and settled max |theta| over the grid, with the Eq. (12) and Floquet boundaries."""
+    nx, ny = len(config.x_values), len(config.y_values)
+    swing = rows.sort_values(["ix", "iy"])["theta_absmax"].to_numpy().reshape(nx, ny).T
+    fig = new_figure((12, 4.8))
+    axes = fig.subplots(1, 2)
+    present, extent = draw_map_classes(axes[0], rows, config)
     legend_below(axes[0], handles=[Patch(color=_colour(c), label=c) for c in present])
     im = axes[1].imshow(
         swing, origin="lower", aspect="auto", extent=extent, interpolation="nearest", cmap="viridis", vmin=0, vmax=np.pi

@@ -13,7 +13,6 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from matplotlib.colors import ListedColormap
 from matplotlib.patches import Patch
 
 from ..continuation.run import parameter_unit
@@ -21,7 +20,7 @@ from ..errors import ConfigError, RunFailure
 from ..maps import MapConfig, hopf_boundaries
 from ..plotting import legend_below, new_figure
 from ..results import read_results
-from .basins import _OUTLINED, _colour
+from .basins import _OUTLINED, _colour, draw_map_classes
 from .registry import figure
 
 #: Line style per curve kind.
@@ -49,8 +48,32 @@ def _label(parameter: str, unit: str) -> str:
     return f"{parameter} [{unit}]"
 
 
+def check_overlays(plane: tuple[str, str], overlays: list[Path]) -> None:
+    """Refuse, before a curve is computed, overlays that are not curve or map results in the plane ``plane``."""
+    from ..results import read_metadata
+
+    for path in overlays:
+        meta = read_metadata(path)
+        cfg = meta.get("config", {})
+        kind = meta.get("kind")
+        if kind == "map":
+            axes = {cfg.get("x"), cfg.get("y")}
+        elif kind == "curve":
+            axes = {cfg.get("first"), cfg.get("second")}
+        else:
+            raise ConfigError(f"--overlay {str(path)!r} is a {kind!r} file; give curve or map results")
+        if axes != set(plane):
+            raise ConfigError(
+                f"--overlay {str(path)!r} is over ({', '.join(sorted(map(str, axes)))}), the curve over ({plane[0]}, {plane[1]})"
+            )
+
+
 def plot_curves(paths: list[Path], output: Path) -> Path:
-    """Curves (``kind = "curve"`` files) over at most one map (``kind = "map"``), in the map's orientation."""
+    """Curves (``kind = "curve"`` files) over at most one map (``kind = "map"``).
+
+    The second parameter runs along x and the first along y (f_e against alpha, say), or the map's own
+    axes when there is one.
+    """
     curves, maps = [], []
     for path in paths:
         rows, meta = read_results(path)
@@ -60,9 +83,7 @@ def plot_curves(paths: list[Path], output: Path) -> Path:
     if len(maps) > 1:
         raise ConfigError("give at most one map to draw the curves over")
     first, second = curves[0][1]["config"]["first"], curves[0][1]["config"]["second"]
-    for _, meta, path in curves:
-        if {meta["config"]["first"], meta["config"]["second"]} != {first, second}:
-            raise ConfigError(f"{str(path)!r} is a curve in other parameters than ({first}, {second})")
+    check_overlays((first, second), [path for _, _, path in curves[1:] + maps])
     x, y = second, first
     fig = new_figure((6.4, 5.6))
     ax = fig.subplots()
@@ -107,21 +128,7 @@ def plot_curves(paths: list[Path], output: Path) -> Path:
 
 def _draw_map(ax, rows: pd.DataFrame, config: MapConfig) -> list:
     """The map's motion classes as an image and its Floquet Hopf boundary; returns legend handles."""
-    nx, ny = len(config.x_values), len(config.y_values)
-    grid = rows.sort_values(["ix", "iy"])
-    labels = grid["motion"].to_numpy().reshape(nx, ny).T
-    present = sorted(set(labels.ravel()))
-    code = np.vectorize({c: i for i, c in enumerate(present)}.get)(labels)
-
-    def edges(v):
-        v = np.asarray(v)
-        if v.size == 1:
-            return [v[0] - 0.5, v[0] + 0.5]
-        return [v[0] - (v[1] - v[0]) / 2, v[-1] + (v[-1] - v[-2]) / 2]
-
-    extent = edges(config.x_values) + edges(config.y_values)
-    ax.imshow(code, origin="lower", aspect="auto", extent=extent, interpolation="nearest",
-              cmap=ListedColormap([_colour(c) for c in present]), vmin=-0.5, vmax=len(present) - 0.5, alpha=0.6)  # fmt: skip
+    present, extent = draw_map_classes(ax, rows, config, alpha=0.6)
     ax.set_xlim(extent[0], extent[1])
     ax.set_ylim(extent[2], extent[3])
     handles = [Patch(color=_colour(c), alpha=0.6, label=f"map: {c}") for c in present]

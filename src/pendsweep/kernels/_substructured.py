@@ -34,9 +34,10 @@ e. **Rig** over ``[t_k, t_k+1]`` in ``substeps`` RK4 substeps:
 
    with the pendulum ``m l^2 th'' + f_d(th') + m l (g + x'') sin th = 0``
    (signum of ``th'`` held over a substep). The servo's held command
-   switches where the delayed time crosses a tick, inside a substep if need
-   be (the substep is split there), so the rig depends continuously on
-   ``tau``; the Hermite actuators take the delayed command at the RK4 stages.
+   switches, and the Hermite interpolant's ``x''`` jumps, where the delayed
+   time crosses a tick; a substep holding that instant is split there, so
+   the rig depends continuously on ``tau`` (smoothly between the sampling
+   instants).
 
 State vector (float64, see :func:`state_offsets`): ``0 y*, 1 y*', 2 theta,
 3 theta' (true), 4 x, 5 x', 6 ticks done since the initial state, 7-8 x at
@@ -273,14 +274,28 @@ def rig_tick(x, xd, th, thd, cmd, cmdd, cfg, pend, dt):
                 u = cmd[j1]
                 x, xd, th, thd = servo_rig_rk4((x, xd, th, thd), u, u, u, h - h0, p_rig)
         else:
-            # Each RK4 stage on its own Hermite segment: x is the piecewise cubic itself, continuous in tau.
-            j, s = delayed_segment(r0, cfg.tau, dt, 1, cfg.n_cmd)
-            _x, _xd, a1 = hermite_at(cmd, cmdd, j, s, dt)
-            j, s = delayed_segment(r0 + 0.5 * h, cfg.tau, dt, 1, cfg.n_cmd)
-            _x, _xd, a2 = hermite_at(cmd, cmdd, j, s, dt)
-            j, s = delayed_segment(r0 + h, cfg.tau, dt, 1, cfg.n_cmd)
-            x, xd, a4 = hermite_at(cmd, cmdd, j, s, dt)
-            th, thd = pivot_pendulum_rk4((th, thd), a1, a2, a4, h, (sgn,) + pend)
+            # x'' of the Hermite interpolant jumps at its knots: a substep holding one is split there, so
+            # every RK4 stage sees one cubic and the rig depends smoothly on tau between sampling instants.
+            j0, s0 = delayed_segment(r0, cfg.tau, dt, 1, cfg.n_cmd)
+            j1, _s = delayed_segment(r0 + h, cfg.tau, dt, 1, cfg.n_cmd)
+            p_pend = (sgn,) + pend
+            if j0 == j1:
+                x, xd, th, thd = hermite_rk4(th, thd, cmd, cmdd, j0, s0, h, dt, p_pend)
+            else:
+                h0 = min(max(cfg.tau + math.floor((r0 + h - cfg.tau) / dt + 1e-9) * dt - r0, 0.0), h)
+                x, xd, th, thd = hermite_rk4(th, thd, cmd, cmdd, j0, s0, h0, dt, p_pend)
+                x, xd, th, thd = hermite_rk4(th, thd, cmd, cmdd, j1, 0.0, h - h0, dt, p_pend)
+    return x, xd, th, thd
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def hermite_rk4(th, thd, cmd, cmdd, j, s, h, dt, p_pend):
+    """The pendulum over ``h`` [s] on Hermite segment ``j`` from position ``s`` in it; ``(x, x', th, th')`` at the end."""
+    hs = h / dt
+    _x, _xd, a1 = hermite_at(cmd, cmdd, j, s, dt)
+    _x, _xd, a2 = hermite_at(cmd, cmdd, j, s + 0.5 * hs, dt)
+    x, xd, a4 = hermite_at(cmd, cmdd, j, s + hs, dt)
+    th, thd = pivot_pendulum_rk4((th, thd), a1, a2, a4, h, p_pend)
     return x, xd, th, thd
 
 
