@@ -321,3 +321,83 @@ def test_an_actuator_table_in_the_metadata_is_checked(tmp_path):
     pq.write_table(table.replace_schema_metadata({METADATA_KEY: json.dumps(meta).encode()}), out)
     with pytest.raises(ConfigError, match="actuator model 'third_order' is unknown"):
         read_record(out)
+
+
+# -- the DAQ's sampling declared in the metadata (issue 34) ------------------------------------------------
+
+
+@pytest.mark.parametrize("ramped", [False, True], ids=["held", "ramped"])
+def test_sampled_transfer_trace_is_the_exact_response_to_a_staircase_or_broken_line(ramped):
+    """A command step held (or ramped over one tick) into a second-order servo behind a delay that is
+    no whole number of rows: the exact step (ramp) response, at every row."""
+    from pendsweep.kernels._measured import sampled_transfer_trace
+
+    dt, per_sample, tau, ws, zeta = 0.002, 4, 0.0033, 2 * math.pi * 30, 0.7
+    cmd = np.where(np.arange(201) >= 20, 1e-3, 0.0)
+    h = dt / per_sample
+    split = math.fmod(tau, h)
+    first, second = (servo_propagator(2, ws, zeta, d) for d in (split, h - split))
+    out = np.empty((200 * per_sample + 1, 3))
+    sampled_transfer_trace(cmd, tau, 1.0, 2, ws, zeta, first, second, split, ramped, dt, per_sample, out)
+    wd = ws * math.sqrt(1 - zeta * zeta)
+
+    def step(s):  # unit step response from rest, s >= 0
+        s = np.maximum(s, 0.0)
+        return 1 - np.exp(-zeta * ws * s) * (np.cos(wd * s) + zeta / math.sqrt(1 - zeta * zeta) * np.sin(wd * s))
+
+    t = np.arange(len(out)) * h
+    start = (20 - (1 if ramped else 0)) * dt + tau  # the ramp from sample 19 to 20, or the switch at 20
+    exact = np.array([_ramp_response(s, ws, zeta, dt) for s in t - start]) if ramped else step(t - start)
+    assert np.max(np.abs(out[:, 0] / 1e-3 - exact)) < 1e-9
+
+
+def _ramp_response(s, ws, zeta, dt):
+    """Response of ``x'' = ws^2 (u - x) - 2 zeta ws x'`` to ``u`` rising linearly from 0 to 1 over ``dt``
+    from ``s = 0`` (quadrature of the step response: the ramp's derivative is a box of height 1/dt)."""
+    from scipy.integrate import quad
+
+    wd = ws * math.sqrt(1 - zeta * zeta)
+
+    def step(r):
+        if r <= 0:
+            return 0.0
+        return 1 - math.exp(-zeta * ws * r) * (math.cos(wd * r) + zeta / math.sqrt(1 - zeta**2) * math.sin(wd * r))
+
+    if s <= 0:
+        return 0.0
+    return quad(lambda v: step(s - v), 0.0, min(s, dt), epsabs=1e-13, epsrel=1e-12)[0] / dt
+
+
+def test_a_held_command_into_a_point_sampled_load_cell_is_modelled_when_the_record_declares_it():
+    """A load cell sampled at the tick and a command held over it (a staircase into a 30 Hz servo):
+    declared in the metadata (``daq``), the specimen's replay samples Eq. (4) at the tick under the
+    staircase's motion and the clean record is named ``none``; undeclared, the replay reads the tick
+    mean of a smooth command's motion and blames the specimen (the known limit)."""
+    rig = dict(servo_hz=30.0, delay=0.0033, hold=1, point_load_cell=True, describes_servo=True)
+    declared = generate(servo_case(rig=Rig(**rig, declares_daq=True), duration=8.0))
+    assert declared.daq == {"load_cell": "point", "command": "held"}
+    _, js = verdict(servo_case(rig=Rig(**rig, declares_daq=True), duration=8.0))
+    assert js["cause"] == "none" and not js["unexplained"], js["cause"]
+    _, plain = verdict(servo_case(rig=Rig(**rig), duration=8.0))
+    assert plain["cause"] != "none" or plain["unexplained"], plain["cause"]
+
+
+def test_the_daq_key_is_read_written_and_checked(tmp_path):
+    record = generate(servo_case(duration=4.0))
+    daq = {"load_cell": "point", "command": "ramped"}
+    record = Record(record.data, record.kind, record.params, record.tau, record.forcing, "lab", daq=daq)
+    assert record.sampling("load_cell") == "point" and Record(record.data, "rig").sampling("command") == "smooth"
+    csv = tmp_path / "rec.csv"
+    write_record(record, csv)
+    assert read_record(csv).daq == daq
+    meta = json.loads(csv.with_suffix(".json").read_text())
+    for bad, message in [
+        ({"load_cell": "averaged"}, "daq.load_cell = 'averaged'; accepted: tick_mean, point"),
+        ({"command": "linear"}, "daq.command = 'linear'; accepted: smooth, ramped, held"),
+        ({"clock": "gps"}, "unknown daq key 'clock'; accepted: load_cell, command"),
+        ("point", "metadata 'daq' must be a JSON object"),
+    ]:
+        csv.with_suffix(".json").write_text(json.dumps(dict(meta, daq=bad)))
+        r = CliRunner().invoke(main, ["diagnose", str(csv)])
+        assert r.exit_code == 2 and message in r.output, r.output
+        assert len(r.output.strip().splitlines()) == 1

@@ -493,3 +493,32 @@ def test_diagnose_refuses_work_beyond_max_work_and_runs_with_yes(tmp_path):
     accepted = CliRunner().invoke(main, ["diagnose", str(record), "--max-work", "1e5", "--yes"])
     assert accepted.exit_code == 0, accepted.output
     assert json.loads(accepted.output)["cause"] == "none"
+
+
+def test_the_closed_loop_replay_samples_the_load_cell_at_the_tick_where_the_record_declares_it():
+    """A loop whose load cell reads Eq. (4) at the tick (the replay's own kernel with ``point``, noise
+    added): declared ``daq.load_cell = "point"`` the closed-loop replay sits at the noise floor; read
+    as the default tick mean it does not."""
+    import pandas as pd
+
+    from pendsweep.data import Record
+    from pendsweep.kernels import substructured_replay
+    from pendsweep.params import FIG9_PO
+
+    p, dt, tau = FIG9_PO, 0.002, 0.004
+    n = int(round(6.0 / dt)) + 1
+    t = np.arange(n) * dt
+    f = p.alpha * np.sin(2 * np.pi * p.fe * t)
+    fh = p.alpha * np.sin(2 * np.pi * p.fe * (t[:-1] + dt / 2))
+    out, cmd, cmdd = np.empty((n, 4)), np.zeros(n), np.zeros(n)
+    state = np.array([0.0, 0.0, 0.3, 0.0])
+    args = (p.M1, p.C1, p.M2, p.C2, f, fh, 1.0, 1.0, tau, dt, 2, cmd, cmdd, 0, out, math.nan, True)
+    substructured_replay(state, p.kernel_array(), *args)
+    rng = np.random.default_rng(SEED)
+    data = pd.DataFrame({"t": t, "theta": out[:, 1] + rng.normal(0, 1e-4, n), "y": out[:, 0] + rng.normal(0, 2e-5, n),
+                         "Fe": f, "y_cmd": out[:, 3], "Fs": out[:, 2] + rng.normal(0, 0.01, n)})  # fmt: skip
+    ratios = {}
+    for daq in ({"load_cell": "point"}, {}):
+        rp = Replay(Record(data, "substructured", p, tau, {"alpha": p.alpha, "fe": p.fe}, daq=daq))
+        ratios[bool(daq)] = rp.nrmse(rp.simulate({})) ** 2 / rp.noise_floor() ** 2
+    assert ratios[True] < 2.0 < ratios[False], ratios

@@ -8,7 +8,7 @@ x in a substructured test), ``Fe`` [N] (external force on the (emulated)
 oscillator), and optionally ``y_cmd`` [m] (actuator command) and ``Fs`` [N]
 (measured interface force). A ``free_decay`` record needs only ``t, theta``.
 
-Metadata (kind, nominal params, optional forcing) sits in a sidecar
+Metadata (kind, nominal params, optional forcing, actuator and DAQ sampling ``daq``) sits in a sidecar
 ``NAME.json`` next to ``NAME.csv``, or in the parquet key-value metadata under
 the key ``pendsweep``. :func:`read_free_swing` reads the raw encoder format of
 ``shared/data/measured/free-swing-rotary-pendulum``.
@@ -69,6 +69,10 @@ UNIT_FACTORS = {
     "m/s": {"m/s": 1.0, "mm/s": 1e-3},
     "m/s^2": {"m/s^2": 1.0, "mm/s^2": 1e-3, "g": 9.80665},
 }
+#: The DAQ's sampling a record may declare (metadata ``daq``), accepted values first the default:
+#: ``load_cell`` averaged over the controller's tick or sampled at it; ``command`` reaching the
+#: actuator smooth (the replay's cubic Hermite of the samples), ramped linearly between ticks or held.
+DAQ_KEYS = {"load_cell": ("tick_mean", "point"), "command": ("smooth", "ramped", "held")}
 #: Metadata params that are not ModelParams fields.
 EXTRA_PARAMS = ("tau",)
 #: Parquet files of this package that are records under other column names (:mod:`pendsweep.logs`).
@@ -101,6 +105,9 @@ class Record:
         empty: a pure delay of ``tau``.
     sensors : dict
         Optional description of each column's sensor (free text), kept in the metadata.
+    daq : dict
+        Optional DAQ sampling (``{"load_cell": "tick_mean" | "point", "command": "smooth" |
+        "ramped" | "held"}``, :data:`DAQ_KEYS`); missing keys take their defaults (:meth:`sampling`).
     """
 
     data: pd.DataFrame
@@ -111,9 +118,15 @@ class Record:
     name: str = "record"
     actuator: dict[str, Any] = field(default_factory=dict)
     sensors: dict[str, str] = field(default_factory=dict)
+    daq: dict[str, str] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         validate(self.data, self.kind, self.name)
+        self.daq = _parse_daq(self.daq, self.name)
+
+    def sampling(self, key: str) -> str:
+        """The DAQ's ``load_cell`` or ``command`` sampling, declared or the default (:data:`DAQ_KEYS`)."""
+        return self.daq.get(key, DAQ_KEYS[key][0])
 
     @property
     def t(self) -> np.ndarray:
@@ -137,6 +150,8 @@ class Record:
             meta["forcing"] = dict(self.forcing)
         if self.actuator:
             meta["actuator"] = dict(self.actuator)
+        if self.daq:
+            meta["daq"] = dict(self.daq)
         meta["columns"] = {
             c: {
                 "unit": UNITS[c],
@@ -220,6 +235,20 @@ def _parse_actuator(table: Any, name: str) -> dict[str, Any]:
     if "rate" in ACTUATOR_MODELS[model] and not out.get("rate", 0.0) > 0:
         raise ConfigError(f"{name}: actuator model {model!r} needs rate > 0 (1/T [1/s] or ws [rad/s])")
     return out
+
+
+def _parse_daq(table: Any, name: str) -> dict[str, str]:
+    """The metadata's ``daq`` table, checked: known keys with one of their accepted values (:data:`DAQ_KEYS`)."""
+    if table is None:
+        return {}
+    if not isinstance(table, dict):
+        raise ConfigError(f"{name}: metadata 'daq' must be a JSON object, got {table!r}")
+    for k, v in table.items():
+        if k not in DAQ_KEYS:
+            raise ConfigError(f"{name}: unknown daq key {k!r}; accepted: {', '.join(DAQ_KEYS)}")
+        if v not in DAQ_KEYS[k]:
+            raise ConfigError(f"{name}: daq.{k} = {v!r}; accepted: {', '.join(DAQ_KEYS[k])}")
+    return dict(table)
 
 
 def _parse_columns(table: Any, data: pd.DataFrame, name: str) -> dict[str, str]:
@@ -354,7 +383,8 @@ def read_record(path: str | Path, session: int | None = None) -> Record:
     data = data.astype({c: np.float64 for c in data.columns if c in UNITS})
     sensors = _parse_columns(meta.get("columns"), data, name)
     actuator = _parse_actuator(meta.get("actuator"), name)
-    return Record(data, kind, params, tau, forcing, name, actuator, sensors)
+    daq = _parse_daq(meta.get("daq"), name)
+    return Record(data, kind, params, tau, forcing, name, actuator, sensors, daq)
 
 
 def write_record(record: Record, path: str | Path) -> list[Path]:

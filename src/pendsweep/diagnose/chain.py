@@ -320,7 +320,12 @@ def diagnose_parts(
     transfers, verdicts, physical = [], [], []
     for r in records:
         ident = identify_transfer(
-            r.t, r.channel("y_cmd"), r.channel("y"), forcing_frequency(r), nominal_actuator(r.actuator, r.tau)
+            r.t,
+            r.channel("y_cmd"),
+            r.channel("y"),
+            forcing_frequency(r),
+            nominal_actuator(r.actuator, r.tau),
+            r.sampling("command"),
         )
         verdict = judge_transfer(ident)
         verdict["measured_derivatives"] = ident.compare_derivatives(

@@ -84,6 +84,8 @@ class PhysicalReplay(Replay):
         self.fits_initial_state = False
         self.motion = np.ascontiguousarray(motion)
         self.substeps = int(substeps)
+        self.point = record.sampling("load_cell") == "point"
+        self.kinked = record.sampling("command") != "smooth"
         self.per_sample = 2 * self.substeps
         self.horizon = DEFAULT_HORIZON if horizon is None else float(horizon)
         self.segments = _cut(self.start, self.n, max(20, int(round(self.horizon / self.dt))))
@@ -106,7 +108,10 @@ class PhysicalReplay(Replay):
             state = np.zeros(2) if self.rests else np.array([self.states0[k, 0] - offset, self.states0[k, 1]])
             out = np.empty((i1 - i0 + 1, 2))
             rows = self.motion[(i0 - 1) * self.per_sample : (i1 - 1) * self.per_sample + 1]
-            platform_trace(state, p, v["M2"], v["C2"], v["gain_Fs"], rows, self.per_sample, self.dt, self.substeps, out)
+            platform_trace(
+                state, p, v["M2"], v["C2"], v["gain_Fs"], rows, self.per_sample, self.dt, self.substeps, out,
+                self.point, self.kinked,
+            )  # fmt: skip
             sim[i0:i1] = out[1:]
         return {"theta": sim[:, 0] + offset, "Fs": sim[:, 1]}
 

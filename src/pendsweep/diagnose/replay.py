@@ -233,6 +233,8 @@ class Replay:
                 self.states0[:, 0] = self.command[starts]
                 # The load-cell reading at a segment's start is fed back over its first tick.
                 self.force_start = record.channel("Fs")[starts] if "Fs" in record.data else np.full(len(starts), np.nan)
+                # The load cell averaged over the tick (the loop's own) or sampled at it (daq.load_cell).
+                self.point = record.sampling("load_cell") == "point"
             self.force = record.channel("Fe")
             self.force_half = midpoint_values(self.force)
             self.initial_guess = {}
@@ -506,6 +508,7 @@ class Replay:
                 i0,
                 sim[i0 : min(i1, stop)],
                 self.force_start[k],
+                self.point,
             )
         return {"y": sim[:, 0], "theta": sim[:, 1] + theta_offset, "Fs": sim[:, 2], "y_cmd": sim[:, 3]}
 

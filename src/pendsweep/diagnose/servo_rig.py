@@ -118,7 +118,7 @@ def _rig_piece(x, xd, th, thd, t0, hp, cmd, delay, dt, hold, m, l, b, g, order, 
 @nb.njit(cache=True)
 def rig_truth(
     z, m, l, b, g, M1, C1, K, k3, M2, C2, gain, gain_fs, amps, freqs, sweep, dt, nsub, n0, n,
-    delay, order, wn, zeta, servo_gain, fs_noise, drift_c2, hold, predictor, load_cell_tau, integrator,
+    delay, order, wn, zeta, servo_gain, fs_noise, drift_c2, hold, predictor, load_cell_tau, integrator, point=0,
 ):  # fmt: skip
     """A substructuring test: controller at ``dt``, rig RK4 ``nsub`` steps per tick.
 
@@ -132,6 +132,8 @@ def rig_truth(
     (``hold`` 0) or held (1); the platform follows it through a transport
     delay ``delay`` and a servo of ``order`` 1 or 2 (natural or corner
     frequency ``wn`` [rad/s], damping ratio ``zeta``, static gain ``servo_gain``).
+    ``point`` 1: the load cell samples the interface force at the tick instead of averaging it
+    (a held command's switch at the tick counts with its new value).
 
     Returns (n, 8): x [m], theta [rad], Fs measured [N], y_cmd [m], Fe [N], y* [m], and the platform's
     velocity x' [m/s] and acceleration x'' [m/s^2] at the tick (what a velocity sensor and an
@@ -214,6 +216,10 @@ def rig_truth(
                                                order, wn, zeta, servo_gain, M2, c2)  # fmt: skip
                 acc_f += f
         mean_force = acc_f / dt
+        if point == 1:
+            u = _command_input(cmd, (t + dt - delay) / dt, hold)
+            _, xdd, _, thdd = _rig_rhs(x, xd, th, thd, u, m, l, b, g, order, wn, zeta, servo_gain)
+            mean_force = _interface_force(xd, xdd, th, thd, thdd, M2, c2, m, l)
         if load_cell_tau > 0.0:
             fs_lagged += (mean_force - fs_lagged) * (1.0 - math.exp(-dt / load_cell_tau))
         else:
@@ -259,6 +265,11 @@ class Rig:
         The lab's nominal delay differs from the true effective delay by this much [s] (a calibration's error).
     describes_servo : bool
         The record's metadata describes the servo (actuator table); otherwise only its delay ``tau``.
+    point_load_cell : bool
+        The load cell samples the interface force at the tick instead of averaging it over the tick.
+    declares_daq : bool
+        The record's metadata declares the load cell's sampling and the command's hold (``daq``), and
+        its nominal delay leaves out the half tick a held command adds (the replay models the hold).
     """
 
     servo_order: int = 2
@@ -271,6 +282,8 @@ class Rig:
     integrator: int = 0
     calibration_error: float = 0.0
     describes_servo: bool = False
+    point_load_cell: bool = False
+    declares_daq: bool = False
 
     @property
     def wn(self) -> float:

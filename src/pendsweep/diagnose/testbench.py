@@ -293,7 +293,9 @@ def generate(case: Case) -> Record:
     M1 = truth["M"] - nominal.M2
     C1 = truth["C"] - nominal.C2
     rig = case.rig
-    tau_nominal = rig.effective_delay(dt) + rig.calibration_error
+    # A record that declares its held command is replayed with the hold: its nominal leaves the half tick out.
+    half_tick = 0.5 * dt if rig.hold and not rig.declares_daq else 0.0
+    tau_nominal = rig.effective_delay(dt) - (0.5 * dt if rig.hold and rig.declares_daq else 0.0) + rig.calibration_error
     wn = rig.wn * case.effects.get("servo_bandwidth", 1.0)
     # An actuator_delay effect sets the true effective delay; the servo's own share stays.
     delay = rig.delay
@@ -305,6 +307,7 @@ def generate(case: Case) -> Record:
         z, m, l, b, g, M1, C1, truth["K"], truth["k3"], truth["M2"], truth["C2"], truth["gain"], truth["gain_Fs"],
         amps, freqs, sweep, dt, nsub, n0, n, delay, rig.servo_order, wn, rig.servo_zeta, servo_gain, fs_noise,
         ex.get("damping_drift", 0.0), rig.hold, predictor_weights(rig.lead, dt), rig.load_cell_tau, rig.integrator,
+        int(rig.point_load_cell),
     )  # fmt: skip
     data = pd.DataFrame(
         {
@@ -319,10 +322,16 @@ def generate(case: Case) -> Record:
     if case.derivatives:
         data["ydot"] = rec[:, 6] + rng.normal(0.0, VELOCITY_NOISE, n)
         data["yddot"] = rec[:, 7] + rng.normal(0.0, ACCELEROMETER_NOISE, n)
+    daq = {}
+    if rig.declares_daq:
+        daq = {
+            "load_cell": "point" if rig.point_load_cell else "tick_mean",
+            "command": "held" if rig.hold else "ramped",
+        }
     actuator = {}
     if rig.describes_servo:
         actuator = {"model": "second_order" if rig.servo_order == 2 else "first_order", "gain": 1.0,
-                    "tau": rig.delay + (0.5 * dt if rig.hold else 0.0) + rig.calibration_error, "rate": rig.wn}  # fmt: skip
+                    "tau": rig.delay + half_tick + rig.calibration_error, "rate": rig.wn}  # fmt: skip
         if rig.servo_order == 2:
             actuator["zeta"] = rig.servo_zeta
     return Record(
@@ -333,6 +342,7 @@ def generate(case: Case) -> Record:
         forcing=forcing,
         name=f"testbench:{case.label}:{case.seed}",
         actuator=actuator,
+        daq=daq,
     )
 
 

@@ -41,7 +41,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from ..errors import ConfigError
-from ..kernels._measured import transfer_trace
+from ..kernels._measured import sampled_transfer_trace, transfer_trace
 from .replay import MAX_STROKE, noise_std
 
 #: Transfer models by name: (order of the servo, names of the nonlinear parameters).
@@ -228,10 +228,14 @@ class TransferProblem:
     ----------
     t, command, measured : ndarray
         Sample times [s], command ``y_cmd`` [m] and LVDT reading ``y`` [m].
+    shape : str
+        How the actuator received the command samples (a record's ``daq.command``): ``smooth``
+        (their cubic Hermite interpolant), ``ramped`` (linearly between ticks) or ``held``.
     """
 
-    def __init__(self, t: np.ndarray, command: np.ndarray, measured: np.ndarray):
+    def __init__(self, t: np.ndarray, command: np.ndarray, measured: np.ndarray, shape: str = "smooth"):
         n = len(t)
+        self.shape = shape
         self.dt = float((t[-1] - t[0]) / (n - 1))
         self.n = n
         self.tc = (t - t[0]) - 0.5 * (t[-1] - t[0])  # centred: offset and drift are uncorrelated
@@ -268,6 +272,17 @@ class TransferProblem:
         rate = actuator.rate if order else 0.0
         propagator = servo_propagator(order, rate, actuator.zeta, self.dt / per_sample)
         gain, (x0, v0) = (actuator.gain, (math.nan, 0.0)) if state is None else (0.0, state)
+        if self.shape != "smooth":
+            h = self.dt / per_sample
+            split = math.fmod(actuator.tau, h)
+            split = 0.0 if split < 1e-9 * h or split > h * (1.0 - 1e-9) else split
+            first = servo_propagator(order, rate, actuator.zeta, split)
+            second = servo_propagator(order, rate, actuator.zeta, h - split)
+            sampled_transfer_trace(
+                self.command, actuator.tau, gain, order, rate, actuator.zeta, first, second, split,
+                self.shape == "ramped", self.dt, per_sample, out, x0, v0,
+            )  # fmt: skip
+            return out
         transfer_trace(
             self.command, self.slope, actuator.tau, gain, order, rate, actuator.zeta, propagator,
             self.dt, per_sample, out, x0, v0,
@@ -349,6 +364,19 @@ class TransferProblem:
                 rate = 2.0 * math.pi * f
                 starts.append({"tau": max(self.start_tau - 1.4 / rate, 0.0), "gain": 1.0, "rate": rate, "zeta": 0.7})
         return starts
+
+    def evaluate(self, actuator: Actuator) -> TransferFit:
+        """``actuator`` as given (no dynamics fitted; the LVDT's offset, drift and the servo's initial
+        state fitted linearly); its error on all compared samples serves as its held-out error."""
+        free = self.free_responses(actuator)
+        x = self._trace(actuator, 1)[:, 0]
+        r, coef = self._residual(x, self.idx, free)
+        names = MODELS[actuator.name][1]
+        rms = float(np.sqrt(np.mean(r * r))) if np.all(np.isfinite(r)) else math.inf
+        return TransferFit(
+            actuator, dict.fromkeys(names, 0.0), np.zeros((len(names), len(names))), float(coef[0]), float(coef[1]),
+            rms, rms, x + coef[0] + coef[1] * self.tc + sum(c * f[:, 0] for c, f in zip(coef[2:], free)), coef[2:],
+        )  # fmt: skip
 
     def identify(self, name: str) -> TransferFit:
         """Model ``name`` fitted on all compared samples, with its held-out error and uncertainties."""
@@ -474,6 +502,7 @@ class TransferIdentification:
     frequency: float
     noise: float
     problem: TransferProblem = field(repr=False)
+    described: TransferFit | None = field(repr=False, default=None)
 
     @property
     def best(self) -> TransferFit:
@@ -489,7 +518,15 @@ class TransferIdentification:
         bandwidth, which a delayed copy of a jittery command (a forward predictor's) does not
         have: its tick-to-tick accelerations reached the load cell as 50 % force errors. The
         selected model drives it only where the second-order one predicts the LVDT worse.
+
+        A command declared held (``daq.command``) makes the acceleration jump by ws^2 x the
+        command's step at each switch, which a load cell sampled at the tick reads in full; the
+        LVDT cannot tell the servo's shape at the forcing, so the servo the metadata describes
+        (:attr:`described`) drives the replay where it predicts the LVDT as well as the selected model.
         """
+        if self.described is not None:
+            if self.described.error_held_out**2 <= (1.0 + SELECT_MARGIN) * self.best.error_held_out**2:
+                return self.described
         servo = min((self.fits["second_order"], self.fits["first_order"]), key=lambda f: f.error_held_out)
         if servo.error_held_out**2 <= (1.0 + SELECT_MARGIN) * self.best.error_held_out**2:
             return servo
@@ -546,7 +583,7 @@ class TransferIdentification:
 
 
 def identify_transfer(
-    t: np.ndarray, command: np.ndarray, measured: np.ndarray, frequency: float, nominal: Actuator
+    t: np.ndarray, command: np.ndarray, measured: np.ndarray, frequency: float, nominal: Actuator, shape: str = "smooth"
 ) -> TransferIdentification:
     """Fit every model of :data:`MODELS` to one record and select one by held-out error (module docstring).
 
@@ -558,6 +595,8 @@ def identify_transfer(
         Forcing frequency [Hz] at which the effective delay is reported.
     nominal : Actuator
         The actuator the record's metadata describes.
+    shape : str
+        How the actuator received the command (:class:`TransferProblem`).
     """
     if np.ptp(command) == 0.0:
         raise ConfigError("the command y_cmd is constant: the actuator cannot be identified from it")
@@ -574,11 +613,12 @@ def identify_transfer(
             f"the measured displacement y moves {ratio:.3g} x as much as the command y_cmd: check their units "
             '(declare them in the metadata\'s columns, e.g. {"y_cmd": {"unit": "mm"}})'
         )
-    problem = TransferProblem(t, command, measured)
+    problem = TransferProblem(t, command, measured, shape)
     fits = {name: problem.identify(name) for name in MODELS}
     best_ms = min(f.error_held_out**2 for f in fits.values())
     selected = next(name for name in MODELS if fits[name].error_held_out ** 2 <= (1.0 + SELECT_MARGIN) * best_ms)
-    return TransferIdentification(fits, selected, nominal, float(frequency), problem.noise, problem)
+    described = problem.evaluate(nominal) if shape == "held" and nominal.order else None
+    return TransferIdentification(fits, selected, nominal, float(frequency), problem.noise, problem, described)
 
 
 def dominant_frequency(x: np.ndarray, dt: float) -> float:

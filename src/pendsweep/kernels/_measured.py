@@ -19,7 +19,7 @@ import numpy as np
 from ._actuator import hermite
 from ._emulated import eq11_params, eq11_step
 from ._layout import P_B1, P_B2, P_B3, P_G, P_K, P_K3, P_L, P_M_PEND, STATUS_DIVERGED, STATUS_OK
-from ._rhs import servo_acc, signum
+from ._rhs import pendulum_acc, servo_acc, signum
 from ._steps import model_rk4, pivot_pendulum_rk4
 from ._substructured import interface_momentum
 
@@ -122,10 +122,18 @@ def _delayed_command(cmd, cmdd, k, r, tau, dt):
     return hermite(cmd[j], cmdd[j], cmd[j + 1], cmdd[j + 1], q - j, dt)
 
 
+@nb.njit(cache=True, nogil=True, inline="always")
+def _point_force(x, xd, xdd, th, thd, ms, C2, m, l, b1, b2, b3, g):
+    """Eq. (4) at one instant: ``(M2 + m) x'' + C2 x' + m l (theta'' sin theta + theta'^2 cos theta)`` [N]."""
+    thdd = pendulum_acc(th, thd, xdd, signum(thd), m, l, b1, b2, b3, g)
+    return ms * xdd + C2 * xd + m * l * (thdd * math.sin(th) + thd * thd * math.cos(th))
+
+
 @nb.njit(cache=True, nogil=True)
 def substructured_replay(
-    state, p, M1, C1, M2, C2, force, force_half, gain, gain_fs, tau, dt, substeps, cmd, cmdd, k0, out, fs_start=math.nan
-):
+    state, p, M1, C1, M2, C2, force, force_half, gain, gain_fs, tau, dt, substeps, cmd, cmdd, k0, out,
+    fs_start=math.nan, point=False,
+):  # fmt: skip
     """The substructuring loop driven by a recorded F_e, with x(t) = y_cmd(t - tau).
 
     Each tick follows :func:`pendsweep.kernels._substructured.substructured_loop`
@@ -168,6 +176,11 @@ def substructured_replay(
         is the mean force over the tick before ``k0``, which needs the pendulum's
         state there. NaN (default): computed from ``state`` with the pendulum
         term held over that tick (exact for a pendulum at rest).
+    point : bool, optional
+        The load cell samples Eq. (4) at the tick instead of averaging it over
+        the last tick (a record's ``daq.load_cell = "point"``): ``(M2 + m) x''
+        + C2 x' + m l (theta'' sin theta + theta'^2 cos theta)`` with x'' the
+        delayed command's at the tick.
 
     Returns
     -------
@@ -184,9 +197,11 @@ def substructured_replay(
     mom_prev = interface_momentum(xd, x, thd * math.sin(th), ms, C2, m, l)
     for i in range(n):
         k = k0 + i
-        x, xd, _a = _delayed_command(cmd, cmdd, k, 0.0, tau, dt)
+        x, xd, a = _delayed_command(cmd, cmdd, k, 0.0, tau, dt)
         mom = interface_momentum(xd, x, thd * math.sin(th), ms, C2, m, l)
         f_fb = gain_fs * (mom - mom_prev) / dt
+        if point:
+            f_fb = gain_fs * _point_force(x, xd, a, th, thd, ms, C2, m, l, b1, b2, b3, g)
         if i == 0 and math.isfinite(fs_start):
             f_fb = fs_start
         mom_prev = mom
@@ -298,6 +313,96 @@ def transfer_trace(cmd, cmdd, tau, gain, order, rate, zeta, propagator, dt, per_
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
+def _sampled_command(cmd, t, tau, dt, ramped):
+    """The command the actuator received at ``t`` from samples sent ``tau`` earlier: held over each tick
+    (zero-order hold) or ramped linearly to the next sample; value [m] and slope [m/s]. At a switch, the
+    new value; before the record, its first value; after it, its last."""
+    j = int(math.floor((t - tau) / dt + 1e-9))
+    n = cmd.shape[0]
+    if j < 0:
+        return cmd[0], 0.0
+    if j >= n - 1:
+        return cmd[n - 1], 0.0
+    if not ramped:
+        return cmd[j], 0.0
+    slope = (cmd[j + 1] - cmd[j]) / dt
+    return cmd[j] + (t - tau - j * dt) * slope, slope
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _sampled_piece(prop, x, v, cmd, start, length, tau, dt, ramped, gain):
+    """The servo over ``[start, start + length]``, a piece on which the sampled command is one line."""
+    c, cd = _sampled_command(cmd, start + 0.5 * length, tau, dt, ramped)
+    return _propagate(prop, x, v, gain * (c - 0.5 * length * cd), gain * cd, 0.0, 0.0)
+
+
+@nb.njit(cache=True, nogil=True)
+def sampled_transfer_trace(
+    cmd, tau, gain, order, rate, zeta, first, second, split, ramped, dt, per_sample, out, x0=math.nan, v0=0.0
+):
+    """:func:`transfer_trace` for a command held over each tick or ramped linearly between ticks.
+
+    A record's ``daq.command`` (``"held"`` or ``"ramped"``) says how the actuator received the
+    command samples; the input ``u = gain * c(t - tau)`` is then a staircase or a broken line
+    whose corners fall ``split = tau mod h`` after each output row's start (``h = dt /
+    per_sample``). Each row is advanced in two exact pieces, ``first`` over ``split`` and
+    ``second`` over ``h - split`` (:func:`pendsweep.diagnose.transfer.servo_propagator`), with
+    the input's line on each; the output rows are as :func:`transfer_trace`'s, the input taken
+    with its new value at a switch (a pure delay: x' = u', x'' = 0 between the jumps).
+
+    Parameters
+    ----------
+    cmd : float64[n]
+        Command samples [m].
+    tau, gain, order, rate, zeta, dt, per_sample, out, x0, v0
+        As :func:`transfer_trace`.
+    first, second : float64[2, 6]
+        Servo propagators over ``split`` and ``h - split``.
+    split : float
+        Offset of the command's corners within an output row [s], ``0 <= split < h``.
+    ramped : bool
+        Linear ramps between the samples; False: each sample held over its tick.
+
+    Returns
+    -------
+    int
+        ``STATUS_OK`` or ``STATUS_DIVERGED``.
+    """
+    h = dt / per_sample
+    c, cd = _sampled_command(cmd, 0.0, tau, dt, ramped)
+    x, xd = gain * c, gain * cd
+    if order == 1:
+        xd = 0.0
+    if not math.isnan(x0):
+        x, xd = x0, v0
+    rows = out.shape[0]
+    for i in range(rows):
+        s = i * h
+        c, cd = _sampled_command(cmd, s, tau, dt, ramped)
+        u, ud = gain * c, gain * cd
+        if order == 0:
+            x, xd, xdd = u, ud, 0.0
+        elif order == 1:
+            xd = rate * (u - x)
+            xdd = rate * (ud - xd)
+        else:
+            xdd = servo_acc(x, xd, u, rate * rate, 2.0 * zeta * rate)
+        out[i, 0], out[i, 1], out[i, 2] = x, xd, xdd
+        if not (math.isfinite(x) and math.isfinite(xd)):
+            out[i:, :] = np.nan
+            return STATUS_DIVERGED
+        if order == 0 or i == rows - 1:
+            continue
+        v = xd if order == 2 else 0.0
+        if split > 0.0:
+            x, v = _sampled_piece(first, x, v, cmd, s, split, tau, dt, ramped, gain)
+        x, v = _sampled_piece(second, x, v, cmd, s + split, h - split, tau, dt, ramped, gain)
+        if order == 2:
+            xd = v
+    return STATUS_OK
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
 def _propagate(p, x, v, u, ud, udd, uddd):
     """One exact servo step: ``p`` (2 x 6) on ``(x, x', u, u', u'', u''')``."""
     z = (x, v, u, ud, udd, uddd)
@@ -309,7 +414,7 @@ def _propagate(p, x, v, u, ud, udd, uddd):
 
 
 @nb.njit(cache=True, nogil=True)
-def platform_trace(state, p, M2, C2, gain_fs, motion, per_sample, dt, substeps, out):
+def platform_trace(state, p, M2, C2, gain_fs, motion, per_sample, dt, substeps, out, point=False, kinked=False):
     """The physical substructure driven by a prescribed platform motion: pendulum angle and load cell.
 
     The pendulum of Eq. (2) rides a pivot whose acceleration is read from
@@ -339,6 +444,15 @@ def platform_trace(state, p, M2, C2, gain_fs, motion, per_sample, dt, substeps, 
     out : float64[n, 2]
         Filled with theta [rad] and F_s measured [N]; row 0's force is NaN (no
         step before it).
+    point : bool, optional
+        The load cell samples Eq. (4) at the tick (x'' of ``motion``'s row
+        there) instead of averaging it over the last sample step.
+    kinked : bool, optional
+        The motion's acceleration jumps inside the rows (a command held or ramped over each tick,
+        :func:`sampled_transfer_trace`): each RK4 step takes the pivot's mean acceleration over its
+        halves from the velocity column, ``a1 = A``, ``a2 = (A + B) / 2``, ``a4 = B``, so that the
+        step's velocity change is exact whatever the jump's position (row values would misplace
+        it by up to half a step, a drift that the pendulum's parametric resonance amplifies).
 
     Returns
     -------
@@ -356,13 +470,21 @@ def platform_trace(state, p, M2, C2, gain_fs, motion, per_sample, dt, substeps, 
         for sub in range(substeps):
             r = base + 2 * sub
             q = (signum(thd), m, l, b1, b2, b3, g)
-            th, thd = pivot_pendulum_rk4((th, thd), motion[r, 2], motion[r + 1, 2], motion[r + 2, 2], h, q)
+            a1, a2, a4 = motion[r, 2], motion[r + 1, 2], motion[r + 2, 2]
+            if kinked:
+                a1 = (motion[r + 1, 1] - motion[r, 1]) / (0.5 * h)
+                a4 = (motion[r + 2, 1] - motion[r + 1, 1]) / (0.5 * h)
+                a2 = 0.5 * (a1 + a4)
+            th, thd = pivot_pendulum_rk4((th, thd), a1, a2, a4, h, q)
         if not (math.isfinite(th) and math.isfinite(thd)):
             out[i:, :] = np.nan
             return STATUS_DIVERGED
         row = i * per_sample
         mom = interface_momentum(motion[row, 1], motion[row, 0], thd * math.sin(th), ms, C2, m, l)
         out[i, 0], out[i, 1] = th, gain_fs * (mom - mom_prev) / dt
+        if point:
+            xs = motion[row]
+            out[i, 1] = gain_fs * _point_force(xs[0], xs[1], xs[2], th, thd, ms, C2, m, l, b1, b2, b3, g)
         mom_prev = mom
     return STATUS_OK
 
