@@ -49,7 +49,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import brentq
 
-from ..data import Record
+from ..data import DAQ_KEYS, Record
 from ..errors import ConfigError
 from ..scan import Work
 from .effects import ACTUATOR_CAUSES, PART_OF
@@ -373,9 +373,16 @@ def _check_force_scale(replay: PhysicalReplay, record: Record) -> None:
     ratio = float(np.std(measured[valid]) / np.std(modelled[valid])) if valid.any() else 1.0
     low, high = FORCE_SCALE_LIMITS
     if not low <= ratio <= high:
+        declared = {k: v for k in ("load_cell", "command") if (v := record.sampling(k)) != DAQ_KEYS[k][0]}
+        hint = ""
+        if declared and not record.actuator:
+            hint = (
+                f"; or: the record declares daq {declared}, whose replay needs the servo described in the "
+                "metadata's actuator table"
+            )
         raise ConfigError(
             f"{record.name}: the load cell Fs reads {ratio:.3g} x the force the nominal specimen gives on this "
-            'motion: check its units (declare them in the metadata\'s columns, e.g. {"Fs": {"unit": "kN"}})'
+            'motion: check its units (declare them in the metadata\'s columns, e.g. {"Fs": {"unit": "kN"}})' + hint
         )
 
 
