@@ -66,7 +66,7 @@ import numpy as np
 
 from ..backends.substructured import SubstructuredBackend
 from ..errors import ConfigError
-from ..kernels import N_RECORD_COLUMNS, STATUS_OK, wrap_angle
+from ..kernels import N_RECORD_COLUMNS, STATUS_DIVERGED, STATUS_OK, wrap_angle
 from ..kernels._substructured import (
     S_P_TH,
     S_P_X,
@@ -286,7 +286,12 @@ class LoopShooting:
         none = np.zeros(self.period * self.steps)
         status, _ = substructured_loop(s, kernel, settings, none, none, 0, records, np.empty((0, 15)), 1)
         if status != STATUS_OK:
-            raise OrbitDiverged(f"the loop stopped (status {status}) at {self.parameter}")
+            why = (
+                "ran away"
+                if status == STATUS_DIVERGED
+                else "is unstable here (its stroke or high-frequency monitor tripped)"
+            )
+            raise OrbitDiverged(f"the loop {why} at this {self.parameter}: no orbit of the hybrid test to continue")
         return s[self.live]
 
     def evaluate(self, x: np.ndarray, lam: float, tangent: bool = True) -> Evaluation:
