@@ -228,6 +228,28 @@ def substructured_replay(
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
+def _actuator_output(order, x, xd, u, ud, udd, rate, zeta):
+    """The platform's ``(x, x', x'')`` for actuator ``order`` (0: follows the command ``u`` exactly; 1: first
+    order; 2: the servo) from the state ``(x, x')`` and the delayed command ``u, u', u''`` [m, m/s, m/s^2]."""
+    if order == 0:
+        return u, ud, udd
+    if order == 1:
+        xd = rate * (u - x)
+        return x, xd, rate * (ud - xd)
+    return x, xd, servo_acc(x, xd, u, rate * rate, 2.0 * zeta * rate)
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _stored(out, i, x, xd, xdd):
+    """Row ``i`` of ``out`` set to ``(x, x', x'')``; False (and the rest NaN) once the motion is not finite."""
+    out[i, 0], out[i, 1], out[i, 2] = x, xd, xdd
+    if math.isfinite(x) and math.isfinite(xd):
+        return True
+    out[i:, :] = np.nan
+    return False
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
 def _delayed_jerk(cmd, cmdd, k, r, tau, dt):
     """Third time derivative of the command's Hermite interpolant at ``t_k + r - tau`` (constant per segment)."""
     q = k + (r - tau) / dt
@@ -292,16 +314,8 @@ def transfer_trace(cmd, cmdd, tau, gain, order, rate, zeta, propagator, dt, per_
         k, j = i // per_sample, i % per_sample
         c, cd, cdd = _delayed_command(cmd, cmdd, k, j * h, tau, dt)
         u, ud = gain * c, gain * cd
-        if order == 0:
-            x, xd, xdd = u, ud, gain * cdd
-        elif order == 1:
-            xd = rate * (u - x)
-            xdd = rate * (ud - xd)
-        else:
-            xdd = servo_acc(x, xd, u, rate * rate, 2.0 * zeta * rate)
-        out[i, 0], out[i, 1], out[i, 2] = x, xd, xdd
-        if not (math.isfinite(x) and math.isfinite(xd)):
-            out[i:, :] = np.nan
+        x, xd, xdd = _actuator_output(order, x, xd, u, ud, gain * cdd, rate, zeta)
+        if not _stored(out, i, x, xd, xdd):
             return STATUS_DIVERGED
         if order == 0 or i == rows - 1:
             continue
@@ -379,17 +393,8 @@ def sampled_transfer_trace(
     for i in range(rows):
         s = i * h
         c, cd = _sampled_command(cmd, s, tau, dt, ramped)
-        u, ud = gain * c, gain * cd
-        if order == 0:
-            x, xd, xdd = u, ud, 0.0
-        elif order == 1:
-            xd = rate * (u - x)
-            xdd = rate * (ud - xd)
-        else:
-            xdd = servo_acc(x, xd, u, rate * rate, 2.0 * zeta * rate)
-        out[i, 0], out[i, 1], out[i, 2] = x, xd, xdd
-        if not (math.isfinite(x) and math.isfinite(xd)):
-            out[i:, :] = np.nan
+        x, xd, xdd = _actuator_output(order, x, xd, gain * c, gain * cd, 0.0, rate, zeta)
+        if not _stored(out, i, x, xd, xdd):
             return STATUS_DIVERGED
         if order == 0 or i == rows - 1:
             continue
