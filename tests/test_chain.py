@@ -21,8 +21,9 @@ from click.testing import CliRunner
 from pendsweep.cli import main
 from pendsweep.data import Record, read_record, write_record
 from pendsweep.diagnose.chain import BANDWIDTH_TOLERANCE, diagnose_records, judge_transfer
+from pendsweep.diagnose.servo_step import servo_propagator
 from pendsweep.diagnose.testbench import TEST_SEEDS, Case, Rig, generate
-from pendsweep.diagnose.transfer import Actuator, identify_transfer, servo_propagator
+from pendsweep.diagnose.transfer import Actuator, identify_transfer
 from pendsweep.errors import ConfigError
 from pendsweep.kernels._measured import transfer_trace
 from pendsweep.params import FIG9_PO
