@@ -14,7 +14,7 @@ from pendsweep.cli import main
 from pendsweep.continuation import FOLD, NEIMARK_SACKER, PERIOD_DOUBLING, Continuation, PendulumShooting, Settings
 from pendsweep.continuation import semi_trivial_section as rest_section
 from pendsweep.continuation.curve_system import CurveProblem
-from pendsweep.continuation.curves import CurveContinuation, CurveSettings
+from pendsweep.continuation.curves import CurveContinuation, curve_settings
 from pendsweep.continuation.loop import LoopShooting, smoothed_backend
 from pendsweep.continuation.tolerance import within_limit
 from pendsweep.hopf import alpha_hopf_analytic, fe_for_omega_hat
@@ -50,7 +50,7 @@ def floquet_boundary(params):
 def trace(problem, second, kind, x0, lam1, lam2, bounds1, bounds2, reference, **settings):
     """A curve of ``problem`` from ``(x0, lam1, lam2)`` (both ways)."""
     cp = CurveProblem(problem, second, kind, abs(bounds2[1] - bounds2[0]))
-    cc = CurveContinuation(cp, bounds1, bounds2, CurveSettings(**settings), names=(problem.parameter, second))
+    cc = CurveContinuation(cp, bounds1, bounds2, curve_settings(**settings), names=(problem.parameter, second))
     return cc, cc.run(x0, lam1, lam2, reference)
 
 
@@ -382,20 +382,23 @@ def test_cli_curve_writes_rows_with_configuration_and_resumes(continuation_file,
     assert np.allclose(rows["critical_re"], -1.0, atol=1e-8)
 
     cut = tmp_path / "cut.parquet"
-    original = curves_module._Reporting.append
+    original = curves_module.CurveContinuation.march
     calls = {"n": 0}
 
-    def failing(self, point):
-        calls["n"] += 1
-        if calls["n"] > 14:
-            raise KeyboardInterrupt
-        original(self, point)
+    def interrupted(self, start, on_point=None, budget=None):
+        def failing(point):  # a Ctrl-C after the 14th accepted point
+            calls["n"] += 1
+            if calls["n"] > 14:
+                raise KeyboardInterrupt
+            on_point(point)
 
-    monkeypatch.setattr(curves_module._Reporting, "append", failing)
+        return original(self, start, on_point=failing, budget=budget)
+
+    monkeypatch.setattr(curves_module.CurveContinuation, "march", interrupted)
     CliRunner().invoke(main, args + ["-o", str(cut)])
     partial, meta = read_results(cut)
     assert not meta["complete"] and 10 <= len(partial) < len(rows)
-    monkeypatch.setattr(curves_module._Reporting, "append", original)
+    monkeypatch.setattr(curves_module.CurveContinuation, "march", original)
     result = CliRunner().invoke(main, args + ["-o", str(cut), "--resume"])
     assert result.exit_code == 0, result.output
     resumed, meta = read_results(cut)

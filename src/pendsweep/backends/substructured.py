@@ -352,7 +352,8 @@ class SubstructuredBackend(BackendBase):
             w_pred=w,
             wd_pred=wd,
             use_filter=bool(self.force_filter),
-            sos=self.filter_sos(params, dt),
+            # Without the filter its sections only size the (unused) state slots: no design needed.
+            sos=self.filter_sos(params, dt) if self.force_filter else np.zeros((self.filter_order, 6)),
             use_force_pred=bool(self.force_filter and use_pred),
             w_force=wf,
             enc_res=float(self.encoder_resolution),

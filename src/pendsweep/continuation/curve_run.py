@@ -45,8 +45,9 @@ from ..errors import ConfigError
 from ..params import PARAM_SPECS, ModelParams, check_value
 from ..results import atomic_write_table, check_writable, read_results, run_metadata, with_metadata
 from .curve_system import CURVE_KINDS, CurveProblem, initial_reference
-from .curves import CurveContinuation, CurvePoint, CurveSettings
+from .curves import CurveContinuation, CurvePoint, curve_settings
 from .loop import LOOP_PARAMETERS
+from .problem import Settings
 from .run import MODEL_CONTINUABLE, read_json, stored_config, stored_problem
 
 #: Points between two checkpoints of the result file.
@@ -166,8 +167,8 @@ class CurveConfig:
         problem = stored_problem(doc, int(self.bifurcation["period"]), n_cmd)
         return CurveProblem(problem, self.second, self.kind, abs(self.stop - self.start))
 
-    def settings(self) -> CurveSettings:
-        return CurveSettings(ds=self.ds, ds_max=self.ds_max, max_points=self.max_points, newton_tol=self.newton_tol)
+    def settings(self) -> Settings:
+        return curve_settings(ds=self.ds, ds_max=self.ds_max, max_points=self.max_points, newton_tol=self.newton_tol)
 
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)

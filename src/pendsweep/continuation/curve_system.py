@@ -118,6 +118,7 @@ class CurveProblem:
         self.scale = np.asarray(problem.scale, dtype=float)
         self.lam_scales = np.array([problem.lam_scale, lam2_scale], dtype=float)
         self.n = self.scale.size
+        self._last = None
 
     # -- variables ---------------------------------------------------------------------
     def pack(self, x: np.ndarray, lam1: float, lam2: float) -> np.ndarray:
@@ -129,7 +130,13 @@ class CurveProblem:
 
     def map_at(self, u: np.ndarray, tangent: bool):
         x, lam1, lam2 = self.unpack(u)
-        return self.problem.at(self.second, lam2).evaluate(x, lam1, tangent=tangent)
+        return self._at(lam2).evaluate(x, lam1, tangent=tangent)
+
+    def _at(self, lam2: float):
+        """The one-parameter problem at ``lam2``, kept for the last value asked (most evaluations share it)."""
+        if self._last is None or self._last[0] != lam2:
+            self._last = (lam2, self.problem.at(self.second, lam2))
+        return self._last[1]
 
     def residual(self, u: np.ndarray) -> np.ndarray:
         """Scaled ``G(u)``."""
@@ -264,9 +271,7 @@ class CurveProblem:
 
     def tests(self, mu: np.ndarray, i: int, tangent: np.ndarray, normal_form: float) -> dict[str, float]:
         """Test functions of the module table at one point."""
-        others = np.delete(
-            mu, [i] + ([int(np.argmin(np.abs(mu - np.conj(mu[i]))))] if self.kind == NEIMARK_SACKER else [])
-        )
+        others = other_multipliers(mu, mu[i], self.kind)
         pairs = [others[a] * others[b] - 1.0 for a in range(others.size) for b in range(a + 1, others.size)]
         out = {
             "turn1": float(tangent[self.n]),
@@ -292,6 +297,18 @@ def _slope(fn: Callable[[np.ndarray], np.ndarray], u: np.ndarray, e: np.ndarray,
         return (fn(u + e) - fn(u - e)) / (2.0 * h)
     except PendsweepError:
         return (fn(u + e) - fn(u)) / h
+
+
+def other_multipliers(mu: np.ndarray, critical: complex, kind: str) -> np.ndarray:
+    """The multipliers ``mu`` but the critical one (nearest ``critical``) and, on a Neimark-Sacker curve,
+    its conjugate."""
+    first = int(np.argmin(np.abs(mu - critical)))
+    drop = [first]
+    if kind == NEIMARK_SACKER:
+        distance = np.abs(mu - np.conj(critical))
+        distance[first] = np.inf
+        drop.append(int(np.argmin(distance)))
+    return np.delete(mu, drop)
 
 
 def initial_reference(kind: str, multipliers: np.ndarray) -> complex:

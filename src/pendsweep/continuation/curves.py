@@ -29,38 +29,18 @@ import numpy as np
 
 from .algebra import falsi_point, illinois_update, newton, null_tangent
 from .curve_system import CurveEnded, CurveProblem, _pair_turned_real, event_name, initial_reference
-from .problem import _STEP_FAILURES, NEIMARK_SACKER, ContinuationError
+from .problem import _STEP_FAILURES, NEIMARK_SACKER, ContinuationError, Settings
 
 
-@dataclass
-class CurveSettings:
-    """Controls of a curve continuation (scaled units, as :class:`~.problem.Settings`).
+def curve_settings(**changes: Any) -> Settings:
+    """The continuation controls (:class:`~.problem.Settings`) with a curve's defaults: Newton to 1e-9
+    in 8 iterations, 200 points a direction, events located to 1e-6 in arclength, steps down to 1e-5
+    (the same march fields; ``lam_step``, ``max_period`` and ``switch_offset`` are not used here)."""
+    return dataclasses.replace(CURVE_DEFAULTS, **changes)
 
-    Attributes
-    ----------
-    ds, ds_min, ds_max : float
-        First, smallest and largest arclength step.
-    newton_tol : float
-        Scaled max-norm of the last Newton update (and the residual it corrected).
-    max_iterations, fast_iterations : int
-        Corrector iterations before a step fails; a corrector this fast lets the step grow.
-    max_turn : float
-        Largest angle [rad] between consecutive tangents.
-    max_points : int
-        Points per direction.
-    locate_tol : float
-        Arclength tolerance of the location of codimension-two points.
-    """
 
-    ds: float = 0.02
-    ds_min: float = 1e-5
-    ds_max: float = 0.05
-    newton_tol: float = 1e-9
-    max_iterations: int = 8
-    fast_iterations: int = 3
-    max_turn: float = 0.5
-    max_points: int = 200
-    locate_tol: float = 1e-6
+#: :func:`curve_settings` without changes.
+CURVE_DEFAULTS = Settings(ds_min=1e-5, newton_tol=1e-9, max_iterations=8, max_points=200, locate_tol=1e-6)
 
 
 @dataclass
@@ -99,12 +79,12 @@ class CurveContinuation:
         curve_problem: CurveProblem,
         bounds1: tuple[float, float],
         bounds2: tuple[float, float],
-        settings: CurveSettings | None = None,
+        settings: Settings | None = None,
         names: tuple[str, str] = ("lam1", "lam2"),
         progress: Callable[[int], None] | None = None,
     ):
         self.cp = curve_problem
-        self.settings = settings or CurveSettings()
+        self.settings = settings or curve_settings()
         # A finite-difference monodromy (the hybrid loop's) knows its multipliers only so well: Newton's
         # tolerance is kept ten times above that floor, or it stalls at it.
         floor = 10.0 * getattr(curve_problem.problem, "multiplier_precision", 0.0)
@@ -219,24 +199,30 @@ class CurveContinuation:
         """
         st = self.settings
         ds = start.step if math.isfinite(start.step) else st.ds
-        prev, points = start, _Reporting(on_point)
+        prev, points = start, []
+
+        def keep(point: CurvePoint) -> None:
+            points.append(point)
+            if on_point is not None:
+                on_point(point)
+
         budget = st.max_points if budget is None else budget
         while len(points) < budget:
             u_pred = prev.u + ds * prev.tangent
             if not self._inside(*self.cp.unpack(u_pred)[1:]) and self._on_bound(prev, u_pred):
-                return list(points), "range"  # on a bound already, heading out (a delay of 0, say)
+                return points, "range"  # on a bound already, heading out (a delay of 0, say)
             u, ok, iterations = self.correct(u_pred, prev.tangent, prev.critical)
-            ok = ok and float(np.linalg.norm(u - u_pred)) <= 0.3 * ds
+            ok = ok and float(np.linalg.norm(u - u_pred)) <= st.max_correction * ds
             new = None
             if ok:
                 _, lam1, lam2 = self.cp.unpack(u)
                 if not self._inside(lam1, lam2):
                     end = self._edge(prev, u)
                     if end is not None:
-                        points += self._events(prev, end, ds)
-                        points.append(end)
+                        for point in [*self._events(prev, end, ds), end]:
+                            keep(point)
                         self.progress(1)
-                    return list(points), "range"
+                    return points, "range"
                 try:
                     new = self.make_point(u, u - prev.u, prev.critical, prev.vector)
                 except (*_STEP_FAILURES, CurveEnded):
@@ -246,17 +232,17 @@ class CurveContinuation:
             if not ok:
                 ds *= 0.5
                 if ds < st.ds_min:
-                    return list(points), self._why_stopped(prev)
+                    return points, self._why_stopped(prev)
                 continue
             located = self._events(prev, new, ds)
             if iterations <= st.fast_iterations:
                 ds = min(st.ds_max, 1.5 * ds)
             for point in [*located, new]:
                 point.step = ds
-                points.append(point)
+                keep(point)
             self.progress(1)
             prev = new
-        return list(points), "max-points"
+        return points, "max-points"
 
     def _why_stopped(self, prev: CurvePoint) -> str:
         """The reason a march could not step on: the critical multiplier's type, or the step."""
@@ -354,21 +340,3 @@ class CurveContinuation:
         ahead, ahead_end = self.march(start)
         back, back_end = self.march(self.reverse(start))
         return Curve(self.cp.kind, list(back)[::-1] + [start] + list(ahead), [back_end, ahead_end])
-
-
-class _Reporting(list):
-    """A list of points that tells ``on_point`` of every point added."""
-
-    def __init__(self, on_point: Callable[[CurvePoint], None] | None):
-        super().__init__()
-        self.on_point = on_point
-
-    def append(self, point: CurvePoint) -> None:
-        super().append(point)
-        if self.on_point is not None:
-            self.on_point(point)
-
-    def __iadd__(self, points):
-        for point in points:
-            self.append(point)
-        return self

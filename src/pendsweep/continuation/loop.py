@@ -210,6 +210,7 @@ class LoopShooting:
         self.live = live_slots(backend, settings)
         self.scale = slot_scales(settings, params, self.length)[self.live]
         self.theta = int(np.flatnonzero(self.live == S_THETA)[0])
+        self._last: tuple[float, LoopSettings, np.ndarray] | None = None
         self.multiplier_precision = MULTIPLIER_PRECISION
 
     def _lam0(self) -> float:
@@ -258,9 +259,9 @@ class LoopShooting:
     def params_at(self, lam: float) -> ModelParams:
         return self.params if self.parameter in LOOP_PARAMETERS else self.params.replace(**{self.parameter: lam})
 
-    def full_state(self, x: np.ndarray, template: np.ndarray | None = None) -> np.ndarray:
-        """The loop's whole state with the live slots ``x`` (the others from ``template`` or consistent with ``x``)."""
-        s = np.zeros(self.length) if template is None else np.array(template, dtype=np.float64)
+    def full_state(self, x: np.ndarray) -> np.ndarray:
+        """The loop's whole state with the live slots ``x`` (the slots no tick reads: zeros, or consistent with ``x``)."""
+        s = np.zeros(self.length)
         s[self.live] = x
         s[S_TICKS] = 0.0
         s[S_XPREV1] = s[S_XPREV2] = s[S_X]
@@ -294,10 +295,16 @@ class LoopShooting:
             raise OrbitDiverged(f"the loop {why} at this {self.parameter}: no orbit of the hybrid test to continue")
         return s[self.live]
 
+    def _settings_and_kernel(self, lam: float) -> tuple[LoopSettings, np.ndarray]:
+        """The kernel's settings and parameter vector at ``lam``, kept for the last value asked: a curve's
+        gradient evaluates the map some hundred times at one parameter value."""
+        if self._last is None or self._last[0] != lam:
+            self._last = (lam, self.settings_at(lam), self.params_at(lam).kernel_array())
+        return self._last[1], self._last[2]
+
     def evaluate(self, x: np.ndarray, lam: float, tangent: bool = True) -> Evaluation:
         """``P^k(x) - x`` (theta wrapped), the finite-difference monodromy (when ``tangent``) and the records."""
-        settings = self.settings_at(lam)
-        kernel = self.params_at(lam).kernel_array()
+        settings, kernel = self._settings_and_kernel(lam)
         records = np.empty((self.period, N_RECORD_COLUMNS))
         x = np.asarray(x, dtype=np.float64)
         image = self._advance(x, settings, kernel, records)

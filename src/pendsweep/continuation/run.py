@@ -271,7 +271,7 @@ class ContinuationConfig:
         if self.backend != "emulated":
             from .loop import smoothing_record
 
-            d["backend_options"] = {k: v for k, v in dataclasses.asdict(problem.backend).items()}
+            d["backend_options"] = dataclasses.asdict(problem.backend)
             d["smoothing"] = smoothing_record(self._unsmoothed_backend(), self.eps)
             d["delay_line"] = problem.n_cmd
         return d

@@ -47,12 +47,17 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ..errors import ConfigError
+from ..errors import ConfigError, PendsweepError
 from ..loop import MAX_PREDICTOR_ORDER
 from ..results import atomic_write_table, run_metadata, with_metadata
 from .curve_run import CurveConfig, _default_limits, checked_bifurcation
-from .curve_system import CURVE_KINDS
+from .curve_system import CURVE_KINDS, CurveEnded, initial_reference, other_multipliers
+from .problem import ContinuationError, EvaluationFailed
 from .run import ContinuationConfig, parameter_unit, read_json, stored_config
+
+#: Why a delay's point may not be found: Newton does not converge, the orbit cannot be integrated (an
+#: unstable loop trips), the critical multiplier changes type, or the linear algebra fails.
+_POINT_FAILURES = (ContinuationError, EvaluationFailed, PendsweepError, CurveEnded, np.linalg.LinAlgError)
 
 #: Options the tolerance study sets itself.
 STUDIED_OPTIONS = ("transport_delay", "predictor_order", "tau_hat")
@@ -169,15 +174,8 @@ def within_limit(delays: np.ndarray, shifts: np.ndarray, within: float, ok: np.n
     before it). None when even the first point is outside.
     """
     ok = np.ones(delays.size, dtype=bool) if ok is None else np.asarray(ok, dtype=bool)
-    if not (abs(shifts[0]) <= within and ok[0]):
-        return None
-    for i in range(1, delays.size):
-        if not ok[i]:
-            return float(delays[i - 1])
-        if abs(shifts[i]) > within:
-            a, b = abs(shifts[i - 1]), abs(shifts[i])
-            return float(delays[i - 1] + (within - a) / (b - a) * (delays[i] - delays[i - 1]))
-    return float(delays[-1])
+    spans = within_spans(delays, shifts, within, ok)
+    return spans[0][1] if spans and spans[0][0] == float(delays[0]) else None
 
 
 def within_spans(delays: np.ndarray, shifts: np.ndarray, within: float, ok: np.ndarray) -> list[tuple[float, float]]:
@@ -243,26 +241,24 @@ def trace_order(
                 return stored, stored_meta["end"]
             rows = stored.to_dict("records")
     grid = delay_grid(config)
-    points: list[Any] = []
     bif = config.bifurcation
     emulated = np.array([complex(*m) for m in bif.get("multipliers", [])])
     reference_unstable = 0
     if emulated.size:
-        critical = emulated[np.argmin(np.abs(emulated - _reference_critical(bif["type"], emulated)))]
-        reference_unstable = int(np.sum(np.abs(_others(emulated, critical, bif["type"])) > 1.0))
+        critical = initial_reference(bif["type"], emulated)
+        reference_unstable = int(np.sum(np.abs(other_multipliers(emulated, critical, bif["type"])) > 1.0))
     bar = progress_bar(progress, total=grid.size, unit="delay", desc=f"order {order}")
     bar.update(len(rows))
     end = "range"
     try:
         for tau in grid[len(rows) :]:
             try:
-                point = _solve_at(cc, cp, curve_config, rows, points, float(tau))
-            except Exception as exc:  # noqa: BLE001 - any failure ends this order's grid with its reason
+                point = _solve_at(cc, cp, curve_config, rows, float(tau))
+            except _POINT_FAILURES as exc:  # the grid of this order ends here, with its reason
                 end = f"no convergence at {1e3 * tau:.3g} ms ({exc.__class__.__name__})"
                 break
-            points.append(point)
             row = _row(len(rows), point, 1, cp, curve_config)
-            others = _others(point.multipliers, point.critical, curve_config.kind)
+            others = other_multipliers(point.multipliers, point.critical, curve_config.kind)
             row["others_max"] = float(np.abs(others).max())
             row["unstable_others"] = int(np.sum(np.abs(others) > 1.0))
             # The loop is stable when its orbit has no unstable multiplier the emulated orbit lacks: the
@@ -278,27 +274,10 @@ def trace_order(
     return frame, end
 
 
-def _reference_critical(kind: str, multipliers: np.ndarray) -> complex:
-    from .curve_system import initial_reference
-
-    return initial_reference(kind, multipliers)
-
-
-def _others(multipliers: np.ndarray, critical: complex, kind: str) -> np.ndarray:
-    """The multipliers but the critical one (and its conjugate on a Neimark-Sacker curve)."""
-    drop = [int(np.argmin(np.abs(multipliers - critical)))]
-    if kind == "neimark-sacker":
-        drop.append(
-            int(np.argmin(np.abs(multipliers - np.conj(critical)) + 1e9 * (np.arange(multipliers.size) == drop[0])))
-        )
-    return np.delete(multipliers, drop)
-
-
-def _solve_at(cc, cp, curve_config, rows, points, tau: float):
+def _solve_at(cc, cp, curve_config, rows, tau: float):
     """The bifurcation at delay ``tau``, warm-started from the points (or stored rows) before it."""
     if not rows:
         from .curve_run import _start_state
-        from .curve_system import initial_reference
 
         bif = curve_config.bifurcation
         mu = np.array([complex(*m) for m in bif.get("multipliers", [])])
@@ -314,7 +293,7 @@ def _solve_at(cc, cp, curve_config, rows, points, tau: float):
         x, lam = x1 + t * (x1 - x0), lam1 + t * (lam1 - float(before[curve_config.first]))
     try:
         return cc.start(x, lam, tau, critical)
-    except Exception:  # noqa: BLE001 - retry from the last point itself
+    except _POINT_FAILURES:  # the extrapolation overshot (a kink at a whole tick): from the last point itself
         return cc.start(x1, lam1, tau, critical)
 
 

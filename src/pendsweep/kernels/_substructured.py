@@ -247,45 +247,45 @@ def next_command(ys, yds, cfg, yh, cmd, cmdd):
 def rig_tick(x, xd, th, thd, cmd, cmdd, cfg, pend, dt):
     """The rig over one controller tick in ``cfg.substeps`` RK4 substeps.
 
-    The servo's held command switches exactly where the delayed time crosses a
-    tick (the substep is split there); the signum of theta' is held over a substep.
-    ``pend = (m, l, b1, b2, b3, g)``.
+    The delayed command crosses from one command sample to the next (the
+    servo's held value switches, the Hermite interpolant's ``x''`` jumps) at
+    the same instant of every tick, ``tau`` modulo ``dt``: it is found once
+    per tick, and the substep holding it is split there, so every RK4 stage
+    sees one piece and the rig depends continuously on ``tau``. The signum of
+    theta' is held over a substep. ``pend = (m, l, b1, b2, b3, g)``.
     """
     h = dt / cfg.substeps
     ws2 = cfg.ws * cfg.ws
     tzw = 2.0 * cfg.zeta * cfg.ws
+    j, s = delayed_segment(0.0, cfg.tau, dt, 1, cfg.n_cmd)  # the piece at the tick's start
+    knot = (1.0 - s) * dt  # where it ends (dt or beyond: not inside this tick)
+    edge = 1e-9 * dt
     for sub in range(cfg.substeps):
         r0 = sub * h
         sgn = signum(thd) if cfg.sign_eps == 0.0 else math.tanh(thd / cfg.sign_eps)
-        if cfg.actuator == ACT_SERVO:
-            # The held command switches where the delayed time crosses a tick: the substep is split
-            # there, so the rig depends continuously on the delay (a continuation parameter).
-            j0, _s = delayed_segment(r0, cfg.tau, dt, 1, cfg.n_cmd)
-            j1, _s = delayed_segment(r0 + h, cfg.tau, dt, 1, cfg.n_cmd)
-            p_rig = (ws2, tzw, sgn) + pend
-            if j0 == j1:
-                u = cmd[j0]
-                x, xd, th, thd = servo_rig_rk4((x, xd, th, thd), u, u, u, h, p_rig)
-            else:
-                r_switch = cfg.tau + math.floor((r0 + h - cfg.tau) / dt + 1e-9) * dt
-                h0 = min(max(r_switch - r0, 0.0), h)
-                u = cmd[j0]
-                x, xd, th, thd = servo_rig_rk4((x, xd, th, thd), u, u, u, h0, p_rig)
-                u = cmd[j1]
-                x, xd, th, thd = servo_rig_rk4((x, xd, th, thd), u, u, u, h - h0, p_rig)
+        p_servo = (ws2, tzw, sgn) + pend
+        p_pend = (sgn,) + pend
+        # the substep's first piece (sample j before the knot, j - 1 after it) and what is left past the knot
+        if r0 + h <= knot + edge:
+            first, s0, length, rest = j, s + r0 / dt, h, 0.0
+        elif r0 >= knot - edge:
+            first, s0, length, rest = j - 1, s + r0 / dt - 1.0, h, 0.0
         else:
-            # x'' of the Hermite interpolant jumps at its knots: a substep holding one is split there, so
-            # every RK4 stage sees one cubic and the rig depends smoothly on tau between sampling instants.
-            j0, s0 = delayed_segment(r0, cfg.tau, dt, 1, cfg.n_cmd)
-            j1, _s = delayed_segment(r0 + h, cfg.tau, dt, 1, cfg.n_cmd)
-            p_pend = (sgn,) + pend
-            if j0 == j1:
-                x, xd, th, thd = hermite_rk4(th, thd, cmd, cmdd, j0, s0, h, dt, p_pend)
-            else:
-                h0 = min(max(cfg.tau + math.floor((r0 + h - cfg.tau) / dt + 1e-9) * dt - r0, 0.0), h)
-                x, xd, th, thd = hermite_rk4(th, thd, cmd, cmdd, j0, s0, h0, dt, p_pend)
-                x, xd, th, thd = hermite_rk4(th, thd, cmd, cmdd, j1, 0.0, h - h0, dt, p_pend)
+            first, s0, length, rest = j, s + r0 / dt, knot - r0, r0 + h - knot
+        x, xd, th, thd = rig_piece(x, xd, th, thd, first, s0, length, cmd, cmdd, cfg, p_servo, p_pend, dt)
+        if rest > 0.0:
+            x, xd, th, thd = rig_piece(x, xd, th, thd, j - 1, 0.0, rest, cmd, cmdd, cfg, p_servo, p_pend, dt)
     return x, xd, th, thd
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def rig_piece(x, xd, th, thd, j, s, length, cmd, cmdd, cfg, p_servo, p_pend, dt):
+    """The rig over ``length`` [s] on one piece of the delayed command: sample ``j`` held (servo), or the
+    Hermite segment from sample ``j`` entered at position ``s`` (delay and ideal actuators)."""
+    if cfg.actuator == ACT_SERVO:
+        u = cmd[j]
+        return servo_rig_rk4((x, xd, th, thd), u, u, u, length, p_servo)
+    return hermite_rk4(th, thd, cmd, cmdd, j, s, length, dt, p_pend)
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
