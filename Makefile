@@ -22,9 +22,10 @@ run: $(STAMP)  ## the main job: Fig. 11(a) sweep -> results/fig11a.parquet and r
 test: lint  ## lint, then the test suite
 	$(BIN)/python -m pytest -x -q
 
-lint: $(STAMP)  ## ruff lint and format check (configured in pyproject.toml)
+lint: $(STAMP)  ## ruff lint and format check, and the import layers (lint-imports; all in pyproject.toml)
 	$(BIN)/ruff check src tests examples
 	$(BIN)/ruff format --check src tests examples
+	$(BIN)/lint-imports  # the layers contract in pyproject.toml (docs/architecture.md)
 
 format: $(STAMP)  ## apply ruff's fixes and formatting
 	$(BIN)/ruff check --fix src tests examples

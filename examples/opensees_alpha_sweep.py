@@ -7,7 +7,7 @@ genericClient connection, the forcing amplitude alpha is stepped at forcing-
 period boundaries (the Trig series restarts its amplitude at phase 0), with
 `--transient` periods left to decay and `--record` periods recorded at every
 value, as the paper did. The site's log is then turned into the sweep's rows
-(`pendsweep.site.log_rows.sweep_rows`: one row per recorded period, the motion
+(`pendsweep.hybrid.log_rows.sweep_rows`: one row per recorded period, the motion
 class judged within the record's own noise), written as a sweep result that
 `pendsweep plot` reads, and drawn beside the emulated system's diagram and,
 with `--client ROWS.parquet`, pendsweep's own client's (`pendsweep alpha
@@ -84,8 +84,8 @@ def main() -> None:
     status, wall = sweep_alpha(args.port, values, args.fe, args.transient, args.record, steps, host=args.host)
     simulated = len(values) * (args.transient + args.record) / args.fe
     print(f"OpenSees analyze status {status}; {len(values)} values, {simulated:.1f} s of test in {wall:.2f} s wall")
-    from pendsweep.site.log_rows import read_site_log, sweep_rows, write_sweep_rows
-    from pendsweep.sweep import SweepConfig
+    from pendsweep.hybrid.log_rows import read_site_log, sweep_rows, write_sweep_rows
+    from pendsweep.studies.sweep import SweepConfig
 
     log = read_site_log(Path(args.log), wait=5.0)  # the site writes its log when the client has left
     rows = sweep_rows(log, "alpha", values, args.fe, steps, args.transient, args.record, {"fe": args.fe})
@@ -95,8 +95,8 @@ def main() -> None:
     write_sweep_rows(rows, Path(args.output), config, source=f"OpenSees genericClient; site log {args.log}")
     print(f"rows -> {args.output}")
     if args.plot:
-        from pendsweep.plotting import plot_files
-        from pendsweep.sweep import run_sweep
+        from pendsweep.figures.plotting import plot_files
+        from pendsweep.studies.sweep import run_sweep
 
         # the emulated system at the same values (the kick of an in-process sweep leaves the semi-trivial branch)
         emulated = SweepConfig.from_dict({**config, "backend": "emulated", "backend_options": {}}).emulated_reference()

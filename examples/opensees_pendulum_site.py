@@ -107,7 +107,7 @@ def main() -> None:
     print(f"site: max |theta| over the last 20 periods {np.abs(theta[last]).max():.5f} rad")
     if args.compare:
         from pendsweep import make_backend
-        from pendsweep.params import ModelParams
+        from pendsweep.model.params import ModelParams
 
         params = ModelParams.from_mapping({"alpha": args.alpha, "fe": args.fe})
         backend = make_backend("emulated")

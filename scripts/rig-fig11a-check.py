@@ -74,11 +74,11 @@ def relabel(unit):
     """A rig unit's label from its records by the current classifier (noisy; no re-simulation)."""
     import numpy as np
 
-    from pendsweep.classify import classify_records
+    from pendsweep.analysis.classify import classify_records
+    from pendsweep.analysis.sections import section_scales
+    from pendsweep.backends.status import Status
     from pendsweep.kernels import RECORD_COLUMNS
-    from pendsweep.params import ModelParams
-    from pendsweep.sections import section_scales
-    from pendsweep.status import Status
+    from pendsweep.model.params import ModelParams
 
     records = unit[list(RECORD_COLUMNS)].to_numpy(dtype=np.float64)
     params = ModelParams.from_mapping({"fe": 2.5, "alpha": float(unit["alpha"].iloc[0])})
@@ -91,8 +91,8 @@ def compare(out: Path, nudges: int) -> None:
     """comparison.csv, the agreement lines and fig11a_rig.png (the three diagrams one above the other)."""
     import pandas as pd
 
-    from pendsweep.plotting import draw_bifurcation, new_figure
-    from pendsweep.results import read_results
+    from pendsweep.engine.results import read_results
+    from pendsweep.figures.plotting import draw_bifurcation, new_figure
 
     names = {"rig": "through the site, one session", "local": "in process", "emulated": "emulated system"}
     per_point = {}

@@ -12,9 +12,9 @@ import numpy as np
 
 from pendsweep import FIG9_CO, FIG9_PO, TABLE_IV
 from pendsweep.backends import make_backend
-from pendsweep.hopf import floquet_multipliers
 from pendsweep.kernels import driven_trace, pendulum_trace, substructured_replay
-from pendsweep.sweep import SweepConfig, run_sweep
+from pendsweep.studies.hopf import floquet_multipliers
+from pendsweep.studies.sweep import SweepConfig, run_sweep
 
 OUT = Path(__file__).with_name("data") / "reference_v1.npz"
 

@@ -6,9 +6,9 @@ compiled pass per run; tests compare the two on records with every outcome.
 
 import numpy as np
 
-from pendsweep.attractors import AMBIGUITY_FACTOR, Settling
+from pendsweep.analysis.attractors import AMBIGUITY_FACTOR, Settling
+from pendsweep.analysis.sections import section_difference
 from pendsweep.kernels._layout import REC_ROTATIONS, REC_THETA_ABSMAX, REC_THETADOT_SEC, REC_Y_SEC
-from pendsweep.sections import section_difference
 
 _SEC = slice(REC_Y_SEC, REC_THETADOT_SEC + 1)
 
@@ -35,7 +35,7 @@ def near_since_update(buffer, scales, periods, first_row, tol, near_since, activ
 
 
 def settling(rec, scales, *, tol, window, max_period, rest_threshold, rotation_window):
-    """:func:`pendsweep.attractors.settling`, written with numpy passes over all runs."""
+    """:func:`pendsweep.analysis.attractors.settling`, written with numpy passes over all runs."""
     k, periods, _ = rec.shape
     sc = np.broadcast_to(np.asarray(scales, dtype=np.float64), (k, 4))[:, None, :]
     settled = np.zeros(k, dtype=bool)

@@ -14,11 +14,11 @@ from pathlib import Path
 
 import numpy as np
 
-from pendsweep.params import ModelParams
-from pendsweep.site.access import LOOPBACK_NETWORKS, parse_allow
-from pendsweep.site.log import SiteLog
-from pendsweep.site.rig import rig_from_options
-from pendsweep.site.server import SiteServer
+from pendsweep.hybrid.access import LOOPBACK_NETWORKS, parse_allow
+from pendsweep.hybrid.log import SiteLog
+from pendsweep.hybrid.rig import rig_from_options
+from pendsweep.hybrid.server import SiteServer
+from pendsweep.model.params import ModelParams
 
 OPENSEES_SETUP = (1, 1, 1, 0, 1, 0, 0, 0, 1, 0, 256)
 

@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 
 from pendsweep.backends import BACKENDS, Backend, BackendBase, make_backend
+from pendsweep.backends.status import Status
 from pendsweep.kernels import N_RECORD_COLUMNS
 from pendsweep.kernels._layout import REC_THETA_SEC, REC_Y_SEC
-from pendsweep.params import TABLE_IV
-from pendsweep.status import Status
+from pendsweep.model.params import TABLE_IV
 
 SEC = slice(REC_Y_SEC, REC_THETA_SEC + 2)  # y_sec, ydot_sec, theta_sec, thetadot_sec
 POINTS = [TABLE_IV.replace(alpha=a, fe=f) for a, f in ((5.0, 2.2), (12.0, 2.5), (17.0, 2.45))]

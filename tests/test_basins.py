@@ -20,9 +20,14 @@ import pytest
 from click.testing import CliRunner
 from scipy.integrate import solve_ivp
 
-from pendsweep.attractors import MATCH_TOL, SETTLE_TOL, cycle_distance, settling
+from pendsweep.analysis.attractors import MATCH_TOL, SETTLE_TOL, cycle_distance, settling
+from pendsweep.analysis.sections import section_difference, section_period
 from pendsweep.backends._batch import run_batch
-from pendsweep.basins import (
+from pendsweep.cli import main
+from pendsweep.errors import ConfigError
+from pendsweep.kernels import N_RECORD_COLUMNS
+from pendsweep.model.params import ModelParams
+from pendsweep.studies.basins import (
     BasinConfig,
     EmulatedMap,
     escape_rate,
@@ -31,11 +36,6 @@ from pendsweep.basins import (
     settle_runs,
     summarize,
 )
-from pendsweep.cli import main
-from pendsweep.errors import ConfigError
-from pendsweep.kernels import N_RECORD_COLUMNS
-from pendsweep.params import ModelParams
-from pendsweep.sections import section_difference, section_period
 
 DELTA = 0.25  # Duffing damping
 PERIOD = 2.0  # stroboscopic period [time units]
@@ -171,7 +171,7 @@ def test_settling_finds_the_classifiers_period(n):
 
 
 def test_default_sampling_is_multistarts():
-    from pendsweep.sweep import SweepConfig, multistart_initials
+    from pendsweep.studies.sweep import SweepConfig, multistart_initials
 
     config = BasinConfig("alpha", (30.0, 40.0), {"fe": 2.5}, samples=50, seed=4)
     sweep = SweepConfig("alpha", (30.0, 40.0), {"fe": 2.5}, mode="multistart", starts=51, seed=4)
@@ -183,8 +183,8 @@ def test_default_sampling_is_multistarts():
 
 
 def test_vectorised_scales_are_the_classifiers():
-    from pendsweep.attractors import section_scales_many
-    from pendsweep.sections import section_scales
+    from pendsweep.analysis.attractors import section_scales_many
+    from pendsweep.analysis.sections import section_scales
 
     p = ModelParams().replace(alpha=30.0, fe=2.5)
     rec = run_batch([p, p.replace(alpha=10.0)], np.array([[0, 0, 0.3, 0], [0, 0, 0.1, 0]]), 0, 30).records
@@ -428,7 +428,7 @@ def test_unsettled_after_100_is_not_claimed_from_shorter_runs(tmp_path):
 
 
 def test_cli_map_with_boundaries(tmp_path):
-    from pendsweep.maps import MapConfig, hopf_boundaries
+    from pendsweep.studies.maps import MapConfig, hopf_boundaries
 
     runner = CliRunner()
     result = runner.invoke(
@@ -462,7 +462,7 @@ def test_cli_map_with_boundaries(tmp_path):
 
 def test_dask_executor_gives_the_local_rows():
     distributed = pytest.importorskip("distributed")
-    from pendsweep.executors import DaskExecutor
+    from pendsweep.engine.executors import DaskExecutor
 
     config = BasinConfig("alpha", (30.0, 40.0), {"fe": 2.5}, samples=24, max_periods=300)
     local = run_basins(config, chunk_starts=8)

@@ -4,17 +4,17 @@ import numba as nb
 import numpy as np
 import pytest
 
+from pendsweep.analysis.classify import classify_run
 from pendsweep.backends import BackendBase, EmulatedBackend, PointRun
 from pendsweep.backends._batch import batched_evidence, chunk_bounds, run_batch, run_lanes
+from pendsweep.backends.status import Status
 from pendsweep.bench.throughput import vector_instructions
-from pendsweep.classify import classify_run
 from pendsweep.errors import ConfigError
 from pendsweep.kernels import RECORD_COLUMNS, STATUS_DIVERGED, STATUS_OK
 from pendsweep.kernels._batched import Lanes
 from pendsweep.kernels._layout import SECTION_COLUMNS
 from pendsweep.kernels._sincos import ROTATE_MAX_STEP, rotate_sincos, sincos_poly
-from pendsweep.params import TABLE_IV
-from pendsweep.status import Status
+from pendsweep.model.params import TABLE_IV
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -151,7 +151,7 @@ def _assert_close(a, b, rtol):
 
 
 def _compare(params, states, transient, record, rtol, chunk=64, signum="step"):
-    """Batched vs scalar point by point: status, motion label (``pendsweep.classify``) and records.
+    """Batched vs scalar point by point: status, motion label (``pendsweep.analysis.classify``) and records.
 
     Records must agree to 1e-9 relative on semi-trivial and periodic points
     (or everywhere when ``rtol`` is given, for short horizons).
@@ -231,7 +231,7 @@ def test_run_batch_rejects_bad_input():
 
 
 def test_fresh_and_multistart_sweeps_use_the_batched_kernel(monkeypatch):
-    from pendsweep.sweep import SweepConfig, run_sweep
+    from pendsweep.studies.sweep import SweepConfig, run_sweep
 
     calls = []
     original = EmulatedBackend.run_points
@@ -248,7 +248,7 @@ def test_fresh_and_multistart_sweeps_use_the_batched_kernel(monkeypatch):
     # 9 units in tasks of 4 (the classifier's staged extensions, from the final states, come on top)
     assert [n for n, transient in calls if transient == 30] == [4, 4, 1]
     backend = EmulatedBackend()
-    from pendsweep.sweep import multistart_initials
+    from pendsweep.studies.sweep import multistart_initials
 
     for (point, start), rows in df.groupby(["point", "start"]):
         params = config.params_at(config.values[point])
@@ -279,7 +279,7 @@ class _ScalarOnly(EmulatedBackend):
 
 
 def test_hopf_simulate_rows_run_batched_in_lockstep_and_match_the_scalar_kernel(monkeypatch):
-    from pendsweep.hopf import HopfConfig, hopf_simulate, hopf_simulate_rows
+    from pendsweep.studies.hopf import HopfConfig, hopf_simulate, hopf_simulate_rows
 
     calls = []
     original = EmulatedBackend.run_points

@@ -1,6 +1,6 @@
 """Diagnosis of substructured tests part by part: the transfer system, the specimen, the numerical model (issue 22).
 
-Records come from :mod:`pendsweep.diagnose.testbench` (servo rigs written
+Records come from :mod:`pendsweep.measured.diagnose.testbench` (servo rigs written
 independently of the replays: first- and second-order servos behind transport
 delays, commands ramped or held, forward predictors, load-cell lags,
 central-difference controllers), from analytic steady states, and from real
@@ -19,15 +19,15 @@ import pytest
 from click.testing import CliRunner
 
 from pendsweep.cli import main
-from pendsweep.data import Record, read_record, write_record
-from pendsweep.diagnose.chain import BANDWIDTH_TOLERANCE, diagnose_records, judge_transfer
-from pendsweep.diagnose.servo_step import servo_propagator
-from pendsweep.diagnose.testbench import TEST_SEEDS, Case, Rig, generate
-from pendsweep.diagnose.transfer import Actuator, identify_transfer
+from pendsweep.engine.results import METADATA_KEY, read_metadata
 from pendsweep.errors import ConfigError
 from pendsweep.kernels._measured import transfer_trace
-from pendsweep.params import FIG9_PO
-from pendsweep.results import METADATA_KEY, read_metadata
+from pendsweep.measured.diagnose.chain import BANDWIDTH_TOLERANCE, diagnose_records, judge_transfer
+from pendsweep.measured.diagnose.servo_step import servo_propagator
+from pendsweep.measured.diagnose.testbench import TEST_SEEDS, Case, Rig, generate
+from pendsweep.measured.diagnose.transfer import Actuator, identify_transfer
+from pendsweep.measured.records import Record, read_record, write_record
+from pendsweep.model.params import FIG9_PO
 
 sys.path.insert(0, str(Path(__file__).parent))
 from site_helpers import ThreadSite  # noqa: E402

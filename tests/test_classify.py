@@ -6,8 +6,7 @@ import matplotlib.legend
 import numpy as np
 import pytest
 
-from pendsweep.backends import make_backend
-from pendsweep.classify import (
+from pendsweep.analysis.classify import (
     EXTEND_PERIODS,
     Evidence,
     classify_records,
@@ -16,12 +15,13 @@ from pendsweep.classify import (
     lyapunov_estimate,
     two_trajectory_log_stretch,
 )
+from pendsweep.analysis.sections import NOISE_MAX, PERIODIC_TOL, section_period, section_scales
+from pendsweep.backends import make_backend
+from pendsweep.backends.status import Status
 from pendsweep.kernels._layout import RECORD_INDEX as REC
 from pendsweep.kernels._layout import SECTION_COLUMNS
-from pendsweep.params import FIG9_CO, FIG9_PO
-from pendsweep.sections import NOISE_MAX, PERIODIC_TOL, section_period, section_scales
-from pendsweep.status import Status
-from pendsweep.sweep import SweepConfig, run_sweep
+from pendsweep.model.params import FIG9_CO, FIG9_PO
+from pendsweep.studies.sweep import SweepConfig, run_sweep
 
 UNIT = np.ones(4)  # constructed sections are already dimensionless
 RECORD = 20
@@ -163,8 +163,8 @@ def test_sweep_rows_carry_one_motion_per_unit():
 def test_bifurcation_plot_shades_motion_bands():
     import matplotlib.pyplot as plt
 
-    from pendsweep.plotting import draw_bifurcation
-    from pendsweep.sweep import sweep_metadata
+    from pendsweep.figures.plotting import draw_bifurcation
+    from pendsweep.studies.sweep import sweep_metadata
 
     config = SweepConfig(
         parameter="alpha",
@@ -186,7 +186,7 @@ def test_batched_evidence_gives_the_labels_of_point_by_point_evidence():
     """The extension and Lyapunov twin integrated as lanes of one batched launch (the fast path)
     label points as re-simulating each one period at a time with the scalar kernel does."""
     from pendsweep import TABLE_IV
-    from pendsweep.classify import classify_runs
+    from pendsweep.analysis.classify import classify_runs
 
     backend = make_backend("emulated")
 
@@ -231,7 +231,7 @@ def test_batched_evidence_gives_the_labels_of_point_by_point_evidence():
 def fresh_dense_sweep_points(indices):
     """Points (in ascending alpha) of the dense fresh sweep (alpha 0-45 N in steps of 0.05 N, fe = 2.5 Hz, M = 10.9 kg,
     100 + 20 periods from theta = 0.1 rad) by index: chaotic ones depend on alpha's last bits."""
-    from pendsweep.sweep import value_range
+    from pendsweep.studies.sweep import value_range
 
     backend = make_backend("emulated")
     alphas = value_range(0.0, 45.0, 0.05)[list(indices)]
@@ -244,7 +244,7 @@ def fresh_dense_sweep_points(indices):
 def test_staged_evidence_labels_chaotic_points_as_full_evidence_does():
     """Chaotic points of the dense fresh sweep: tumbling ones (Lyapunov pair alone) and swinging ones
     (an extension that never repeats, then the pair) keep their label with staged evidence."""
-    from pendsweep.classify import classify_runs
+    from pendsweep.analysis.classify import classify_runs
 
     # 38.1, 41.6 and 44.9 N tumble in the record; 42.3, 42.6 and 43.7 N swing.
     backend, params, runs = fresh_dense_sweep_points([762, 832, 846, 852, 874, 898])
@@ -261,7 +261,7 @@ def test_staged_evidence_calls_transient_chaos_that_settles_transient():
     """The one label of the dense fresh sweep that staged evidence changes: at 43.05 N the
     record is a chaotic transient whose section repeats within the extension; full evidence
     says chaotic (the record's Lyapunov exponent), staged evidence stops at the repeat."""
-    from pendsweep.classify import classify_runs
+    from pendsweep.analysis.classify import classify_runs
 
     backend, params, runs = fresh_dense_sweep_points([861])  # 43.05 N
     (full,) = classify_runs(backend, params, runs, evidence="full")
@@ -271,7 +271,7 @@ def test_staged_evidence_calls_transient_chaos_that_settles_transient():
 
 
 def test_evidence_mode_is_checked():
-    from pendsweep.classify import classify_runs
+    from pendsweep.analysis.classify import classify_runs
     from pendsweep.errors import ConfigError
 
     with pytest.raises(ValueError, match="evidence"):

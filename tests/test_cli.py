@@ -9,7 +9,7 @@ import pytest
 from click.testing import CliRunner
 
 from pendsweep.cli import main
-from pendsweep.results import read_results
+from pendsweep.engine.results import read_results
 
 FAST = ["--transient-periods", "3", "--record-periods", "2", "--no-progress"]
 
@@ -56,7 +56,7 @@ def test_run_toml_and_regenerate_from_parquet(tmp_path):
 
 
 def test_shipped_sweep_definitions_load():
-    from pendsweep.sweepfile import builtin_sweeps, load_sweep
+    from pendsweep.studies.sweepfile import builtin_sweeps, load_sweep
 
     assert set(builtin_sweeps()) >= {"fig11a", "fig11b"}
     a = load_sweep("fig11a")  # by name, as `pendsweep run fig11a`
@@ -136,7 +136,7 @@ def test_run_by_name_list_and_wrong_kind(tmp_path, monkeypatch):
 
 def test_default_output_replaced_for_another_configuration_and_resumed_for_the_same(tmp_path, monkeypatch):
     """A second, different query into the default path replaces the first with a note; the same one resumes."""
-    from pendsweep.results import read_metadata
+    from pendsweep.engine.results import read_metadata
 
     monkeypatch.chdir(tmp_path)
     default = tmp_path / "results" / "hopf.parquet"
@@ -156,7 +156,7 @@ def test_default_output_replaced_for_another_configuration_and_resumed_for_the_s
 
 
 def test_importing_pendsweep_leaves_the_matplotlib_backend_alone():
-    code = "import pendsweep.cli, pendsweep.plotting, pendsweep.figures, matplotlib; print(matplotlib.get_backend())"
+    code = "import pendsweep.cli, pendsweep.figures.plotting, pendsweep.figures, matplotlib; print(matplotlib.get_backend())"
     env = {**os.environ, "MPLBACKEND": "svg"}
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
@@ -204,13 +204,13 @@ def test_installed_wheel_runs_from_an_empty_folder(tmp_path):
     assert "fig11a" in pendsweep("run", "--list")
     loaded = python(
         "-c",
-        "from pendsweep.sweepfile import load_sweep; s = load_sweep('fig11a'); print(s.config.parameter, len(s.config.values), s.output)",
+        "from pendsweep.studies.sweepfile import load_sweep; s = load_sweep('fig11a'); print(s.config.parameter, len(s.config.values), s.output)",
     )
     assert loaded.split() == ["alpha", "91", "results/fig11a.parquet"]
     assert "fig5_margin.png" in pendsweep("figures", "fig5_margin")
     pendsweep("hopf", "--what", "1.1087", "--method", "analytic", "--no-progress")
     assert "another configuration" in pendsweep("hopf", "--what", "1.0,1.05", "--method", "analytic", "--no-progress")
-    backend = "import pendsweep.plotting, pendsweep.figures, matplotlib; print(matplotlib.get_backend())"
+    backend = "import pendsweep.figures.plotting, pendsweep.figures, matplotlib; print(matplotlib.get_backend())"
     assert python("-c", backend, extra_env={"MPLBACKEND": "svg"}).strip() == "svg"
     assert {p.name for p in (work / "results").rglob("*.p*")} == {"fig5_margin.png", "hopf.parquet"}
 
@@ -264,7 +264,7 @@ def test_help_imports_no_numerical_stack():
 
 def test_measured_data_locator(tmp_path, monkeypatch):
     """$PENDSWEEP_DATA, else shared/data above the current folder; None (and a note from `figures`) when absent."""
-    from pendsweep.data import DATA_ENV, find_free_swing_data
+    from pendsweep.measured.records import DATA_ENV, find_free_swing_data
 
     records = tmp_path / "shared" / "data" / "measured" / "free-swing-rotary-pendulum"
     records.mkdir(parents=True)

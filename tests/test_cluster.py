@@ -21,10 +21,10 @@ import pytest
 from click.testing import CliRunner
 
 from pendsweep.cli import main
-from pendsweep.executors import DaskExecutor
+from pendsweep.engine.executors import DaskExecutor
+from pendsweep.engine.results import read_results
 from pendsweep.kernels import RECORD_COLUMNS
-from pendsweep.results import read_results
-from pendsweep.sweep import SweepConfig, run_sweep
+from pendsweep.studies.sweep import SweepConfig, run_sweep
 
 distributed = pytest.importorskip("distributed")
 DASK = shutil.which("dask", path=os.path.dirname(sys.executable)) or shutil.which("dask")

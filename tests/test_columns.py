@@ -1,4 +1,4 @@
-"""Rows built from numpy buffers (pendsweep.columns) against pyarrow's own conversions, and the start-up they save."""
+"""Rows built from numpy buffers (pendsweep.engine.columns) against pyarrow's own conversions, and the start-up they save."""
 
 import subprocess
 import sys
@@ -8,8 +8,8 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
-from pendsweep import columns
-from pendsweep.columns import column, has_duplicate_rows, read_parquet, repeated, sort_rows, table, to_numpy
+from pendsweep.engine import columns
+from pendsweep.engine.columns import column, has_duplicate_rows, read_parquet, repeated, sort_rows, table, to_numpy
 
 
 @pytest.mark.parametrize("n", [0, 1, 7, 8, 9, 1000])
@@ -89,7 +89,7 @@ def test_string_codes_sort_as_the_strings():
 
 def test_a_sweep_command_loads_no_pandas_tqdm_or_pyarrow_compute(tmp_path):
     """The cause of a one-point sweep's start-up, checked without timing it (the timing is in `make bench`)."""
-    heavy = ("pandas", "pyarrow.compute", "tqdm", "scipy.signal", "matplotlib", "pendsweep.basins")
+    heavy = ("pandas", "pyarrow.compute", "tqdm", "scipy.signal", "matplotlib", "pendsweep.studies.basins")
     code = (
         "import sys; from click.testing import CliRunner; from pendsweep.cli import main; "
         "r = CliRunner().invoke(main, ['alpha', '--from', '10', '--to', '10.5', '--transient-periods', '2', "

@@ -9,8 +9,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from pendsweep.cli import main
-from pendsweep.continuation import (
+from pendsweep.analysis.continuation import (
     BRANCH_POINT,
     FOLD,
     NEIMARK_SACKER,
@@ -21,12 +20,13 @@ from pendsweep.continuation import (
     Settings,
     semi_trivial_section,
 )
-from pendsweep.continuation.algebra import _Scaled
-from pendsweep.hopf import hopf_floquet
+from pendsweep.analysis.continuation.algebra import _Scaled
+from pendsweep.cli import main
 from pendsweep.kernels._emulated import eq11_params
 from pendsweep.kernels._rhs import eq11_rhs
 from pendsweep.kernels._variational import damping_sign, eq11_jacobian
-from pendsweep.params import TABLE_IV
+from pendsweep.model.params import TABLE_IV
+from pendsweep.studies.hopf import hopf_floquet
 
 #: b1 = b3 = 0, fe = 2.5 Hz, M = 10.9 kg: the issue's independent shooting measurement.
 SMOOTH = TABLE_IV.replace(b1=0.0, b3=0.0, fe=2.5, alpha=10.0)
@@ -177,7 +177,7 @@ def test_coulomb_fold_converges_in_eps_and_brackets_the_brute_force_sweep(tmp_pa
     comes to rest 0.05 N below it.
     """
     from pendsweep.backends import make_backend
-    from pendsweep.sweep import SweepConfig, run_sweep
+    from pendsweep.studies.sweep import SweepConfig, run_sweep
 
     params = TABLE_IV.replace(alpha=18.0)
     backend = make_backend("emulated")
@@ -214,7 +214,7 @@ def test_coulomb_fold_converges_in_eps_and_brackets_the_brute_force_sweep(tmp_pa
 
 def test_cli_continue_starts_from_a_sweep_result(tmp_path):
     """--start SWEEP.parquet takes the period from the recorded sections and Newton converges."""
-    from pendsweep.sweep import SweepConfig, run_sweep
+    from pendsweep.studies.sweep import SweepConfig, run_sweep
 
     sweep = tmp_path / "s.parquet"
     run_sweep(
@@ -601,10 +601,10 @@ def test_cli_continue_eps_0_with_coulomb_friction_prints_a_note(tmp_path):
 def test_sweep_point_labelled_periodic_is_a_start_orbit(tmp_path):
     """A sweep point the classifier labels periodic-2 (Table IV damping, y drifting by ~1e-6 m over the record)
     gives period 2 both from its label and from the start's own repeat test."""
-    from pendsweep.continuation.run import section_period, start_from_file
-    from pendsweep.params import ModelParams
-    from pendsweep.results import read_results
-    from pendsweep.sweep import SweepConfig, run_sweep
+    from pendsweep.analysis.continuation.run import section_period, start_from_file
+    from pendsweep.engine.results import read_results
+    from pendsweep.model.params import ModelParams
+    from pendsweep.studies.sweep import SweepConfig, run_sweep
 
     sweep = tmp_path / "s.parquet"
     run_sweep(SweepConfig("alpha", (25.0,)), sweep)

@@ -21,17 +21,17 @@ import pandas as pd
 import pytest
 from click.testing import CliRunner
 
+from pendsweep.analysis.classify import classify_run
 from pendsweep.backends import PointRun, make_backend
 from pendsweep.backends._batch import run_batch
-from pendsweep.classify import classify_run
+from pendsweep.backends.gpu import cuda_unavailable_reason
+from pendsweep.backends.status import Status
 from pendsweep.cli import main
+from pendsweep.engine.results import read_metadata
 from pendsweep.errors import ConfigError
-from pendsweep.gpu import cuda_unavailable_reason
 from pendsweep.kernels import RECORD_COLUMNS, STATUS_DIVERGED, STATUS_OK
-from pendsweep.params import TABLE_IV
-from pendsweep.results import read_metadata
-from pendsweep.status import Status
-from pendsweep.sweep import SweepConfig, run_sweep
+from pendsweep.model.params import TABLE_IV
+from pendsweep.studies.sweep import SweepConfig, run_sweep
 
 DT = 0.004  # 100 steps per period at 2.5 Hz, 114 at 2.2 Hz: two forcing tables in one launch
 TRANSIENT, RECORD = 5, 25  # 30 periods compared
@@ -44,7 +44,7 @@ SIMULATED = textwrap.dedent(
     import sys
     import numpy as np
     from pendsweep.backends._batch import run_batch
-    from pendsweep.params import TABLE_IV
+    from pendsweep.model.params import TABLE_IV
 
     data = np.load(sys.argv[1])
     params = [TABLE_IV.replace(alpha=a, fe=fe) for a, fe in data["points"]]
@@ -55,12 +55,12 @@ SIMULATED = textwrap.dedent(
         out.update({f"{precision}_{k}": v for k, v in run._asdict().items()})
     run = run_batch(params, data["states"], 0, 3, dt=float(data["dt"]), signum="stage", device="cuda")
     out.update({f"stage_{k}": v for k, v in run._asdict().items()})
-    from pendsweep.basins import EmulatedMap
+    from pendsweep.studies.basins import EmulatedMap
     basin_map = EmulatedMap(tuple(params[:4]), dt=float(data["dt"]), device="cuda")
     out["map_records"] = basin_map.advance(data["states"][:4], 3, np.arange(4))[0]
     np.savez(sys.argv[2], **out)
     import json
-    from pendsweep.sweep import SweepConfig, run_sweep
+    from pendsweep.studies.sweep import SweepConfig, run_sweep
     run_sweep(SweepConfig.from_dict(json.loads(open(sys.argv[3]).read())), sys.argv[4])
     """
 )
@@ -177,7 +177,7 @@ def test_simulated_motion_labels_match(simulated):
 
 def test_simulated_basin_map_rounds_match_cpu(simulated):
     """Basins and 2-D maps integrate their rounds on the GPU through the same EmulatedMap."""
-    from pendsweep.basins import EmulatedMap
+    from pendsweep.studies.basins import EmulatedMap
 
     params, cpu, _, out = simulated
     reference = EmulatedMap(tuple(params[:4]), dt=DT).advance(out["states"][:4], 3, np.arange(4))[0]
@@ -474,7 +474,7 @@ def test_real_gpu_basins_command_matches_cpu(many_points, gpu_launches, tmp_path
     """
     import math
 
-    from pendsweep.basins import BasinConfig, run_basins
+    from pendsweep.studies.basins import BasinConfig, run_basins
 
     frames = {}
     for device in ("cpu", "cuda"):
@@ -501,7 +501,7 @@ def test_real_gpu_basins_command_matches_cpu(many_points, gpu_launches, tmp_path
 @real_gpu_only
 def test_real_gpu_hopf_simulate_matches_cpu(many_points, gpu_launches):
     """The simulated Hopf amplitude, bisected on the GPU, is the CPU's to the bisection tolerance."""
-    from pendsweep.hopf import HopfConfig, run_hopf
+    from pendsweep.studies.hopf import HopfConfig, run_hopf
 
     found = {
         device: run_hopf(

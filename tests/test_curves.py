@@ -9,17 +9,24 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from pendsweep.analysis.continuation import (
+    FOLD,
+    NEIMARK_SACKER,
+    PERIOD_DOUBLING,
+    Continuation,
+    PendulumShooting,
+    Settings,
+)
+from pendsweep.analysis.continuation import semi_trivial_section as rest_section
+from pendsweep.analysis.continuation.curve_system import CurveProblem
+from pendsweep.analysis.continuation.curves import CurveContinuation, curve_settings
+from pendsweep.analysis.continuation.loop import LoopShooting, smoothed_backend
+from pendsweep.analysis.continuation.tolerance import within_limit
+from pendsweep.analysis.semi_trivial import hopf_floquet
 from pendsweep.backends import make_backend
 from pendsweep.cli import main
-from pendsweep.continuation import FOLD, NEIMARK_SACKER, PERIOD_DOUBLING, Continuation, PendulumShooting, Settings
-from pendsweep.continuation import semi_trivial_section as rest_section
-from pendsweep.continuation.curve_system import CurveProblem
-from pendsweep.continuation.curves import CurveContinuation, curve_settings
-from pendsweep.continuation.loop import LoopShooting, smoothed_backend
-from pendsweep.continuation.tolerance import within_limit
-from pendsweep.hopf import alpha_hopf_analytic, fe_for_omega_hat
-from pendsweep.params import TABLE_IV
-from pendsweep.semi_trivial import hopf_floquet
+from pendsweep.model.params import TABLE_IV
+from pendsweep.studies.hopf import alpha_hopf_analytic, fe_for_omega_hat
 from test_continuation import Duffing
 
 #: The smooth model of the continuation tests (b1 = b3 = 0), fe = 2.5 Hz.
@@ -35,7 +42,7 @@ def floquet_boundary(params):
     refined to 1e-13 N by brentq on the same log max|multiplier|, so the comparison is relative at the tip too."""
     from scipy.optimize import brentq
 
-    from pendsweep.semi_trivial import floquet_multipliers
+    from pendsweep.analysis.semi_trivial import floquet_multipliers
 
     coarse = hopf_floquet(params, steps=400)
     assert coarse["multiplier"] == pytest.approx(-1.0, abs=1e-5)
@@ -306,7 +313,7 @@ def test_default_rig_pd_and_the_simulated_growth_of_a_small_swing(default_rig_pd
 
 
 def _scaled(problem):
-    from pendsweep.continuation.algebra import _Scaled
+    from pendsweep.analysis.continuation.algebra import _Scaled
 
     return _Scaled(problem, Settings())
 
@@ -369,8 +376,8 @@ def continuation_file(tmp_path_factory):
 
 def test_cli_curve_writes_rows_with_configuration_and_resumes(continuation_file, tmp_path, monkeypatch):
     """An interrupted curve resumes from its checkpoint to the same rows as an uninterrupted run."""
-    from pendsweep.continuation import curves as curves_module
-    from pendsweep.results import read_results
+    from pendsweep.analysis.continuation import curves as curves_module
+    from pendsweep.engine.results import read_results
 
     args = ["curve", str(continuation_file), "--second", "fe", "--from", "2.4", "--to", "2.6", "--max-points", "30"]
     whole = tmp_path / "whole.parquet"
@@ -440,7 +447,7 @@ def test_cli_tolerance_bad_input_exits_2(continuation_file, extra, needle):
 
 def test_cli_continue_substructured_records_its_smoothing(tmp_path):
     """`continue --backend substructured`: the document says what was switched off; the overlay re-integrates it."""
-    from pendsweep.continuation.run import read_json
+    from pendsweep.analysis.continuation.run import read_json
 
     path = tmp_path / "h.json"
     result = CliRunner().invoke(
@@ -466,7 +473,7 @@ def test_remote_rig_cannot_be_continued():
 def test_cli_tolerance_pure_delay_shifts_grow_from_the_dt_limit(continuation_file, tmp_path):
     """A pure delay without prediction: at 0 ms the loop's PD is the O(dt) shift of the force hold (-0.085 %);
     the shift grows with the delay, within 1 % to a limit the metadata gives; every row records loop stability."""
-    from pendsweep.results import read_results
+    from pendsweep.engine.results import read_results
 
     out = tmp_path / "tol.parquet"
     result = CliRunner().invoke(
@@ -485,7 +492,7 @@ def test_cli_tolerance_pure_delay_shifts_grow_from_the_dt_limit(continuation_fil
 
 
 def test_within_spans_finds_every_interval_on_a_stable_loop():
-    from pendsweep.continuation.tolerance import within_spans
+    from pendsweep.analysis.continuation.tolerance import within_spans
 
     delays = np.array([0.0, 1.0, 2.0, 3.0, 4.0, 5.0])
     shifts = np.array([0.03, 0.02, 0.0, 0.0, 0.02, 0.0])

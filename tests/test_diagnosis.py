@@ -1,6 +1,6 @@
 """Diagnosis on independently generated records (issue 11).
 
-Records come from :mod:`pendsweep.diagnose.testbench`, which shares no
+Records come from :mod:`pendsweep.measured.diagnose.testbench`, which shares no
 integration code with the replay kernels: another RK4 at 0.1 ms with the
 friction sign per stage, Eqs. (1)-(2) solved by Cramer's rule, a substructuring
 rig with a second-order servo behind a transport delay and an integrating load
@@ -18,14 +18,14 @@ import pytest
 from click.testing import CliRunner
 
 from pendsweep.cli import main
-from pendsweep.data import find_free_swing_data, read_record, write_record
-from pendsweep.diagnose import EFFECTS, Replay, diagnose
-from pendsweep.diagnose.chain import diagnose_records
-from pendsweep.diagnose.fitting import Fit
-from pendsweep.diagnose.judging import block_test
-from pendsweep.diagnose.populations import truth_value
-from pendsweep.diagnose.testbench import CALIBRATION_SEEDS, TEST_SEEDS, Case, generate
-from pendsweep.params import ENCODER_RESOLUTION
+from pendsweep.measured.diagnose import EFFECTS, Replay, diagnose
+from pendsweep.measured.diagnose.chain import diagnose_records
+from pendsweep.measured.diagnose.fitting import Fit
+from pendsweep.measured.diagnose.judging import block_test
+from pendsweep.measured.diagnose.populations import truth_value
+from pendsweep.measured.diagnose.testbench import CALIBRATION_SEEDS, TEST_SEEDS, Case, generate
+from pendsweep.measured.records import find_free_swing_data, read_record, write_record
+from pendsweep.model.params import ENCODER_RESOLUTION
 
 SEED = TEST_SEEDS[0] + 101
 _real = find_free_swing_data()
@@ -143,7 +143,7 @@ def test_damping_cannot_absorb_a_resting_encoder_zero():
 
 def test_report_of_a_record_whose_pendulum_never_moves(tmp_path):
     """The report (figures and text) is written for the at-rest case too (theta is not compared)."""
-    from pendsweep.diagnose.report import write_report
+    from pendsweep.measured.diagnose.report import write_report
 
     case = Case(
         "forced",
@@ -466,8 +466,8 @@ def test_real_free_swings_get_one_answer(tmp_path):
 @pytest.mark.parametrize("kind", ["free_decay", "substructured"])
 def test_the_work_estimate_bounds_the_replays_a_diagnosis_runs(kind, monkeypatch):
     """diagnosis_work is an upper estimate of the replays, not a vacuous one (within 20 times)."""
-    from pendsweep.diagnose import replay as replay_module
-    from pendsweep.diagnose.fit import diagnosis_work
+    from pendsweep.measured.diagnose import replay as replay_module
+    from pendsweep.measured.diagnose.fit import diagnosis_work
 
     case = Case(kind, seed=SEED + 7, theta_init=1.0 if kind == "free_decay" else 0.3, duration=8.0)
     rp = Replay(generate(case))
@@ -501,9 +501,9 @@ def test_the_closed_loop_replay_samples_the_load_cell_at_the_tick_where_the_reco
     as the default tick mean it does not."""
     import pandas as pd
 
-    from pendsweep.data import Record
     from pendsweep.kernels import substructured_replay
-    from pendsweep.params import FIG9_PO
+    from pendsweep.measured.records import Record
+    from pendsweep.model.params import FIG9_PO
 
     p, dt, tau = FIG9_PO, 0.002, 0.004
     n = int(round(6.0 / dt)) + 1

@@ -9,11 +9,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from pendsweep.engine.executors import SCHEDULER_ENV, DaskExecutor, make_executor
+from pendsweep.engine.results import read_results
 from pendsweep.errors import ConfigError
-from pendsweep.executors import SCHEDULER_ENV, DaskExecutor, make_executor
 from pendsweep.kernels import RECORD_COLUMNS
-from pendsweep.results import read_results
-from pendsweep.sweep import SweepConfig, run_sweep
+from pendsweep.studies.sweep import SweepConfig, run_sweep
 
 distributed = pytest.importorskip("distributed")
 
@@ -126,7 +126,7 @@ def test_cli_sweep_on_the_cluster(client, tmp_path, monkeypatch):
 
 
 def test_hopf_scan_on_the_cluster(client):
-    from pendsweep.hopf import HopfConfig, run_hopf
+    from pendsweep.studies.hopf import HopfConfig, run_hopf
 
     config = HopfConfig(omega_hat=(0.95, 1.0, 1.05), masses=(10.9,), methods=("analytic", "floquet"))
     remote = run_hopf(config, executor=DaskExecutor(client))

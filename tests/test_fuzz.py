@@ -124,7 +124,7 @@ def files(tmp_path_factory) -> dict[str, str]:
     f["adir"] = d / "adir.parquet"
     f["adir"].mkdir()
     f["missing"] = d / "missing.csv"
-    from pendsweep.continuation.run import ContinuationConfig, run_continuation, write_json
+    from pendsweep.analysis.continuation.run import ContinuationConfig, run_continuation, write_json
 
     cont = ContinuationConfig("alpha", 15.5, 16.5, model={"b1": 0.0, "b3": 0.0}, max_points=20, max_period=1)
     f["cont"] = d / "cont.json"
@@ -637,7 +637,7 @@ _keys = st.sampled_from(
 )
 def test_toml_loader_accepts_or_names_the_problem(data, model, backend):
     """Any table of TOML-able values loads, or raises the package's one-line error; nothing else escapes."""
-    from pendsweep.sweepfile import parse_sweep
+    from pendsweep.studies.sweepfile import parse_sweep
 
     data = dict(data)
     if "model" in data:
@@ -656,7 +656,7 @@ def test_toml_loader_accepts_or_names_the_problem(data, model, backend):
 @settings(max_examples=100, deadline=None)
 @given(st.binary(max_size=400))
 def test_toml_file_of_arbitrary_bytes(blob):
-    from pendsweep.sweepfile import load_sweep
+    from pendsweep.studies.sweepfile import load_sweep
 
     with tempfile.TemporaryDirectory() as d:
         path = Path(d) / "s.toml"
@@ -693,7 +693,7 @@ _csv = st.one_of(
 @given(csv=_csv, sidecar=st.one_of(_sidecar.map(lambda v: json.dumps(v).encode()), st.binary(max_size=60)))
 def test_measured_record_reader_accepts_or_names_the_problem(csv, sidecar):
     """Arbitrary CSV bytes with an arbitrary sidecar: a valid Record or the package's one-line error."""
-    from pendsweep.data import read_record
+    from pendsweep.measured.records import read_record
 
     with tempfile.TemporaryDirectory() as d:
         path = Path(d) / "r.csv"

@@ -8,8 +8,10 @@ from click.testing import CliRunner
 
 from pendsweep.backends import make_backend
 from pendsweep.cli import main
+from pendsweep.engine.results import read_results
 from pendsweep.errors import ConfigError, ResultsError
-from pendsweep.hopf import (
+from pendsweep.model.params import TABLE_IV
+from pendsweep.studies.hopf import (
     HopfConfig,
     alpha_hopf_analytic,
     fe_for_omega_hat,
@@ -18,8 +20,6 @@ from pendsweep.hopf import (
     hopf_simulate,
     run_hopf,
 )
-from pendsweep.params import TABLE_IV
-from pendsweep.results import read_results
 
 SMOOTH = TABLE_IV.replace(b1=0.0, b3=0.0)  # the model Eq. (12) and Floquet are exact for
 
@@ -117,8 +117,8 @@ def test_scan_resumes_from_parts(tmp_path):
     config = HopfConfig(omega_hat=(0.95, 1.0, 1.05), methods=("analytic",))
     full = run_hopf(config, out)
     # Simulate an interrupted run: only the parts of the first two points exist.
-    from pendsweep.hopf import hopf_metadata, hopf_point
-    from pendsweep.results import ResultStore
+    from pendsweep.engine.results import ResultStore
+    from pendsweep.studies.hopf import hopf_metadata, hopf_point
 
     out2 = tmp_path / "resumed.parquet"
     store = ResultStore(out2, hopf_metadata(config), ["mass_point", "point", "method"])
@@ -180,7 +180,7 @@ def test_hopf_figures_quick(tmp_path):
 
 def test_the_vectorised_closed_form_is_the_scalar_one_point_by_point():
     """Eq. (12) in chunks of ANALYTIC_CHUNK points gives every point's scalar value, keys in order."""
-    from pendsweep.hopf import ANALYTIC_CHUNK, HopfConfig, alpha_hopf_analytic, hopf_analytic_rows
+    from pendsweep.studies.hopf import ANALYTIC_CHUNK, HopfConfig, alpha_hopf_analytic, hopf_analytic_rows
 
     n = ANALYTIC_CHUNK + 1001  # two chunks, the second short
     config = HopfConfig(omega_hat=tuple(np.linspace(0.8, 1.2, n)), masses=(10.9, 5.9), methods=("analytic",))

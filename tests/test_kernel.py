@@ -7,9 +7,9 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from pendsweep import FIG9_CO, TABLE_IV, Status, make_backend
-from pendsweep.analytic import linear_amplitude, mechanical_energy
 from pendsweep.kernels import PHYSICS, eq11_params, wrap_angle
 from pendsweep.kernels._layout import RECORD_INDEX as REC
+from pendsweep.model.analytic import linear_amplitude, mechanical_energy
 
 SMOOTH = TABLE_IV.replace(b1=0.0, b3=0.0, alpha=8.0, fe=2.5)
 

@@ -285,7 +285,7 @@ def test_the_sync_figure_of_a_site_log_names_what_it_shows(inspected, tmp_path, 
     that shows them; tick labels keep apart.
     """
     from pendsweep.figures.hybrid import draw_sync
-    from pendsweep.sync import analyse
+    from pendsweep.hybrid.sync import analyse
 
     dt = 1.0 / 1001.0
     t = np.arange(20_000) * dt

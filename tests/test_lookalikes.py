@@ -1,6 +1,6 @@
 """The oscillator's look-alikes told apart where the record can tell them (issue 34).
 
-Records come from the independent testbench (:mod:`pendsweep.diagnose.testbench`), seeds of the
+Records come from the independent testbench (:mod:`pendsweep.measured.diagnose.testbench`), seeds of the
 test range (B). Each test states the physics it checks: a replay with the record's true
 parameters reaches the sensors' noise on every channel; two forcing frequencies, a sweep or a
 start-up transient separate a stiffer spring from a lighter mass; one tone in steady state
@@ -13,10 +13,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from pendsweep.diagnose import Replay, fit_model
-from pendsweep.diagnose.chain import diagnose_records
-from pendsweep.diagnose.fitting import Problem
-from pendsweep.diagnose.identify import (
+from pendsweep.measured.diagnose import Replay, fit_model
+from pendsweep.measured.diagnose.chain import diagnose_records
+from pendsweep.measured.diagnose.fitting import Problem
+from pendsweep.measured.diagnose.identify import (
     SEPARABLE_VIF,
     TONE_SHARE,
     WELL_CONDITIONED_VIF,
@@ -25,10 +25,10 @@ from pendsweep.diagnose.identify import (
     _spectrum,
     identify_oscillator,
 )
-from pendsweep.diagnose.judging import channel_ratios
-from pendsweep.diagnose.replay import rounding_std
-from pendsweep.diagnose.servo_rig import Rig
-from pendsweep.diagnose.testbench import ENCODER_STEP, TEST_SEEDS, Case, generate
+from pendsweep.measured.diagnose.judging import channel_ratios
+from pendsweep.measured.diagnose.replay import rounding_std
+from pendsweep.measured.diagnose.servo_rig import Rig
+from pendsweep.measured.diagnose.testbench import ENCODER_STEP, TEST_SEEDS, Case, generate
 
 SEED = TEST_SEEDS[0] + 3401
 #: The 10 % stiffer spring of the issue, and the coded stiffness of its servo rig.

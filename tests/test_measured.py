@@ -19,15 +19,15 @@ from click.testing import CliRunner  # noqa: E402
 from scipy.optimize import brentq  # noqa: E402
 
 from pendsweep.cli import main  # noqa: E402
-from pendsweep.data import find_free_swing_data, read_free_swing, read_record, write_record  # noqa: E402
-from pendsweep.diagnose import EFFECTS, Replay, diagnose, synthesize  # noqa: E402
-from pendsweep.diagnose.damping import fit_damping  # noqa: E402
-from pendsweep.diagnose.effects import nominal_values  # noqa: E402
-from pendsweep.diagnose.populations import RANGES  # noqa: E402
-from pendsweep.diagnose.replay import midpoint_values, noise_std  # noqa: E402
-from pendsweep.diagnose.signatures import cross_correlation, decrement_fit, envelope  # noqa: E402
 from pendsweep.kernels import driven_trace, emulated_trace, pendulum_trace  # noqa: E402
-from pendsweep.params import FIG9_PO, TABLE_IV  # noqa: E402
+from pendsweep.measured.diagnose import EFFECTS, Replay, diagnose, synthesize  # noqa: E402
+from pendsweep.measured.diagnose.damping import fit_damping  # noqa: E402
+from pendsweep.measured.diagnose.effects import nominal_values  # noqa: E402
+from pendsweep.measured.diagnose.populations import RANGES  # noqa: E402
+from pendsweep.measured.diagnose.replay import midpoint_values, noise_std  # noqa: E402
+from pendsweep.measured.diagnose.signatures import cross_correlation, decrement_fit, envelope  # noqa: E402
+from pendsweep.measured.records import find_free_swing_data, read_free_swing, read_record, write_record  # noqa: E402
+from pendsweep.model.params import FIG9_PO, TABLE_IV  # noqa: E402
 
 _real = find_free_swing_data()
 REAL = None if _real is None else str(_real)
@@ -428,7 +428,7 @@ def test_cli_synth_diagnose_report(tmp_path):
     assert all(len(c["cause"].split("+")) == 2 for c in js["candidates"] if "+" in c["cause"])
     ext = json.loads((tmp_path / "rep" / "extended.json").read_text())
     assert ext["b2"] == pytest.approx(js["estimate"]["b2"])
-    from pendsweep.params import ModelParams
+    from pendsweep.model.params import ModelParams
 
     assert ModelParams.from_mapping(ext).b2 == ext["b2"]
     for f in ("report.md", "measured_vs_models.png", "residuals.png", "signatures.png"):
@@ -436,7 +436,7 @@ def test_cli_synth_diagnose_report(tmp_path):
     report = (tmp_path / "rep" / "report.md").read_text()
     assert "viscous_damping" in report
     # One uncertainty per estimate: the verdict line and the candidate table state the same.
-    from pendsweep.diagnose.report import _fmt
+    from pendsweep.measured.diagnose.report import _fmt
 
     stated = _fmt(js["uncertainty"]["b2"])
     assert f"{_fmt(js['estimate']['b2'])} ± {stated} |" in report
@@ -532,9 +532,9 @@ def test_substructured_extended_model_moves_the_totals(tmp_path):
 
 def test_replay_is_continuous_in_the_delay_at_whole_samples():
     """A delay of exactly 18 samples replays like its neighbours (it read the end of the record)."""
-    from pendsweep.diagnose.populations import draw_case
-    from pendsweep.diagnose.replay import Replay
-    from pendsweep.diagnose.testbench import generate
+    from pendsweep.measured.diagnose.populations import draw_case
+    from pendsweep.measured.diagnose.replay import Replay
+    from pendsweep.measured.diagnose.testbench import generate
 
     _, case = draw_case(43)  # a 2 kHz substructured record from the independent testbench
     replay = Replay(generate(case))

@@ -16,8 +16,8 @@ import pyarrow.parquet as pq
 import pytest
 
 from pendsweep import make_backend
-from pendsweep.params import ENCODER_RESOLUTION, ModelParams
-from pendsweep.site.opensees import run_example
+from pendsweep.hybrid.opensees import run_example
+from pendsweep.model.params import ENCODER_RESOLUTION, ModelParams
 from site_helpers import SiteProcess
 
 PERIODS = 120
@@ -74,9 +74,9 @@ def test_opensees_steps_alpha_inside_one_analysis_like_pendsweeps_own_client(tmp
     import subprocess
     import sys
 
-    from pendsweep.site.continuous import RigWatch
-    from pendsweep.site.opensees import EXAMPLE, opensees_env
-    from pendsweep.sweep import SweepConfig, run_sweep
+    from pendsweep.hybrid.opensees import EXAMPLE, opensees_env
+    from pendsweep.studies.rig_sweep import RigWatch
+    from pendsweep.studies.sweep import SweepConfig, run_sweep
 
     quiet = ("--set", "fe=2.5", "-B", "force_noise=0", "-B", "lvdt_noise=0")
     log = tmp_path / "site-log.parquet"

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from pendsweep import FIG8, FIG9_CO, FIG9_PO, Status
-from pendsweep.analytic import quenching_amplitudes
-from pendsweep.sweep import SweepConfig, run_sweep, value_range
+from pendsweep.model.analytic import quenching_amplitudes
+from pendsweep.studies.sweep import SweepConfig, run_sweep, value_range
 
 
 def records(backend, params, theta0=0.1, transient=100, record=20):

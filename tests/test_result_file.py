@@ -22,10 +22,10 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
-import pendsweep.results as results
-from pendsweep.columns import _short_text_ranks, repeated, table, to_numpy
-from pendsweep.results import METADATA_KEY, ResultStore, run_metadata
-from pendsweep.sweep import SweepConfig, run_sweep, value_range
+import pendsweep.engine.results as results
+from pendsweep.engine.columns import _short_text_ranks, repeated, table, to_numpy
+from pendsweep.engine.results import METADATA_KEY, ResultStore, run_metadata
+from pendsweep.studies.sweep import SweepConfig, run_sweep, value_range
 
 ROWS = ["direction", "point", "period"]
 

@@ -15,12 +15,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from pendsweep.engine.results import OutputLock, OutputLocked, ResultStore, read_metadata, read_results
+from pendsweep.engine.scan import check_jobs
 from pendsweep.errors import ConfigError, ResultsError
-from pendsweep.hopf import HopfConfig, run_hopf
 from pendsweep.kernels import RECORD_COLUMNS
-from pendsweep.results import OutputLock, OutputLocked, ResultStore, read_metadata, read_results
-from pendsweep.scan import check_jobs
-from pendsweep.sweep import SweepConfig, SweepScan, run_sweep, sweep_metadata, value_range
+from pendsweep.studies.hopf import HopfConfig, run_hopf
+from pendsweep.studies.sweep import SweepConfig, SweepScan, run_sweep, sweep_metadata, value_range
 
 SRC = str(Path(__file__).resolve().parents[1] / "src")
 ENV = dict(os.environ, PYTHONUNBUFFERED="1", PYTHONPATH=SRC + os.pathsep + os.environ.get("PYTHONPATH", ""))
@@ -384,7 +384,7 @@ def test_max_work_is_lifted_by_yes(tmp_path):
 
 
 def test_worker_exception_reaches_the_caller():
-    from pendsweep.executors import LocalExecutor
+    from pendsweep.engine.executors import LocalExecutor
 
     def good():
         yield from (1, 2)

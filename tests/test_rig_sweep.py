@@ -21,9 +21,9 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from pendsweep.data import read_record
-from pendsweep.site.continuous import RigWatch
-from pendsweep.sweep import SweepConfig, run_sweep
+from pendsweep.measured.records import read_record
+from pendsweep.studies.rig_sweep import RigWatch
+from pendsweep.studies.sweep import SweepConfig, run_sweep
 from site_helpers import SiteProcess
 
 #: The site's sensors without noise and the client's matching in-process loop (the site's default actuator: ideal).

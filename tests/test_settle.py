@@ -6,12 +6,19 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pendsweep.attractors import MATCH_TOL, ROTATION_WINDOW, SETTLE_TOL, SETTLE_WINDOW, section_scales_many, settling
+from pendsweep.analysis.attractors import (
+    MATCH_TOL,
+    ROTATION_WINDOW,
+    SETTLE_TOL,
+    SETTLE_WINDOW,
+    section_scales_many,
+    settling,
+)
+from pendsweep.analysis.sections import MAX_PERIOD
 from pendsweep.backends._batch import run_batch
 from pendsweep.kernels._layout import REC_ROTATIONS, REC_THETA_ABSMAX, REC_THETA_SEC, REC_Y_SEC
 from pendsweep.kernels._settle import update_near_since
-from pendsweep.params import ENCODER_RESOLUTION, TABLE_IV
-from pendsweep.sections import MAX_PERIOD
+from pendsweep.model.params import ENCODER_RESOLUTION, TABLE_IV
 
 sys.path.insert(0, str(Path(__file__).parent))
 import settle_reference  # noqa: E402

@@ -21,10 +21,10 @@ import pytest
 
 from pendsweep import FIG9_PO, make_backend
 from pendsweep.errors import ConfigError
-from pendsweep.params import ModelParams
-from pendsweep.site import ProtocolError, opensees_setup, parse_setup
-from pendsweep.site.access import LOOPBACK_NETWORKS, admits, loopback_only_warning, parse_allow
-from pendsweep.site.rig import rig_from_options
+from pendsweep.hybrid import ProtocolError, opensees_setup, parse_setup
+from pendsweep.hybrid.access import LOOPBACK_NETWORKS, admits, loopback_only_warning, parse_allow
+from pendsweep.hybrid.rig import rig_from_options
+from pendsweep.model.params import ModelParams
 from site_helpers import OPENSEES_SETUP, RawClient, SiteProcess, ThreadSite
 
 DT = 1e-3

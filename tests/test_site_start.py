@@ -24,11 +24,11 @@ from click.testing import CliRunner
 
 from pendsweep import FIG9_PO, make_backend
 from pendsweep.cli import main
-from pendsweep.params import ModelParams
-from pendsweep.site import connect
-from pendsweep.site.log import SiteLog
-from pendsweep.site.rig import rig_from_options
-from pendsweep.site.server import SiteServer
+from pendsweep.hybrid import connect
+from pendsweep.hybrid.log import SiteLog
+from pendsweep.hybrid.rig import rig_from_options
+from pendsweep.hybrid.server import SiteServer
+from pendsweep.model.params import ModelParams
 from site_helpers import RawClient
 
 README = Path(__file__).resolve().parents[1] / "README.md"

@@ -6,17 +6,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from pendsweep.cli import main
-from pendsweep.params import (
-    FIG5_LOOP,
-    FIG7_LOOP,
-    TABLE_II_FREQ_THEORY_PAPER,
-    TABLE_II_LOOPS,
-    TABLE_II_MODELS,
-    LoopParams,
-    ParameterError,
-)
-from pendsweep.stability import (
+from pendsweep.analysis.stability import (
     SampledLoop,
     count_roots,
     critical_delay_from_roots,
@@ -32,7 +22,17 @@ from pendsweep.stability import (
     switch_sequence,
     table_ii,
 )
-from pendsweep.stability._roots import _generator_eigenvalues
+from pendsweep.analysis.stability._roots import _generator_eigenvalues
+from pendsweep.cli import main
+from pendsweep.model.params import (
+    FIG5_LOOP,
+    FIG7_LOOP,
+    TABLE_II_FREQ_THEORY_PAPER,
+    TABLE_II_LOOPS,
+    TABLE_II_MODELS,
+    LoopParams,
+    ParameterError,
+)
 
 # -- Fig. 5, phase margins ------------------------------------------------------------------
 

@@ -17,13 +17,13 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
-from pendsweep.basins import BasinConfig, run_basins
-from pendsweep.columns import table
-from pendsweep.executors import LocalExecutor
-from pendsweep.hopf import HopfConfig, run_hopf
-from pendsweep.results import METADATA_KEY, ResultStore, read_metadata, run_metadata
-from pendsweep.scan import UnitResult, Work, run_scan
-from pendsweep.sweep import SweepConfig, run_sweep
+from pendsweep.engine.columns import table
+from pendsweep.engine.executors import LocalExecutor
+from pendsweep.engine.results import METADATA_KEY, ResultStore, read_metadata, run_metadata
+from pendsweep.engine.scan import UnitResult, Work, run_scan
+from pendsweep.studies.basins import BasinConfig, run_basins
+from pendsweep.studies.hopf import HopfConfig, run_hopf
+from pendsweep.studies.sweep import SweepConfig, run_sweep
 
 #: Metadata that says when a file was made, not what it holds.
 TIMES = ("created", "completed")
@@ -73,7 +73,7 @@ RUNS = {
 def test_streamed_final_file_equals_the_in_memory_merge(tmp_path, kind, monkeypatch):
     """Every unit its own part (checkpoint 0 s): the parts are streamed. A long checkpoint keeps every
     unit in memory until the end, which writes the final file straight from there."""
-    import pendsweep.results as results
+    import pendsweep.engine.results as results
 
     streamed_plans = []
     plan = results.plan_spans

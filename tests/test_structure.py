@@ -17,7 +17,12 @@ KERNEL_FILES = sorted((SRC / "kernels").glob("*.py"))
 #: Benchmark peers: the scripts a user would write without pendsweep, independent by design
 #: (numpy/JAX cannot call numba functions; the naive script must not import the package), and the
 #: diagnosis testbench and its servo rig, whose records must share no integration code with the replay (issue 11).
-PEERS = ["bench/naive_sweep.py", "bench/throughput.py", "diagnose/testbench.py", "diagnose/servo_rig.py"]
+PEERS = [
+    "bench/naive_sweep.py",
+    "bench/throughput.py",
+    "measured/diagnose/testbench.py",
+    "measured/diagnose/servo_rig.py",
+]
 #: The longest a numba kernel function may be (issue 10: "no kernel function over about 80 lines").
 MAX_KERNEL_LINES = 80
 
@@ -47,7 +52,7 @@ def test_damping_law_is_written_once():
     law = re.compile(r"b1\s*\*\s*\w+\s*\+\s*b2\s*\*\s*\w+\s*\+\s*b3")
     hits = [str(p.relative_to(SRC)) for p in _python_files() if law.search(p.read_text())]
     # The testbench takes its friction from its own servo rig (no damping law of its own).
-    assert sorted(hits) == sorted([*(p for p in PEERS if p != "diagnose/testbench.py"), "kernels/_rhs.py"])
+    assert sorted(hits) == sorted([*(p for p in PEERS if p != "measured/diagnose/testbench.py"), "kernels/_rhs.py"])
 
 
 def test_parameter_order_is_never_written_by_hand():
@@ -154,7 +159,7 @@ def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
 
 def test_the_import_graph_sees_lazy_imports():
     graph = _import_graph()  # the check below is only evidence if it reads imports inside functions too
-    assert "pendsweep.site.client" in graph["pendsweep.backends.substructured"]
+    assert "pendsweep.studies.rig_sweep" in graph["pendsweep.studies.sweep"]  # imported inside functions only
 
 
 def test_no_import_cycle_between_pendsweep_modules():

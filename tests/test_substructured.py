@@ -8,20 +8,20 @@ import numpy as np
 import pytest
 
 from pendsweep.backends import make_backend
+from pendsweep.engine.results import read_results
 from pendsweep.errors import ConfigError
-from pendsweep.hybrid import run_trace
+from pendsweep.hybrid.sync import sync_ratio, xcorr_delay
+from pendsweep.hybrid.trace import run_trace
 from pendsweep.kernels import RECORD_COLUMNS
 from pendsweep.kernels._layout import RECORD_INDEX as REC
-from pendsweep.loop import (
+from pendsweep.model.loop import (
     effective_delay,
     filter_phase,
     phase_to_delay,
     predictor_weights,
 )
-from pendsweep.params import ENCODER_RESOLUTION, FIG9_PO, FIG11A
-from pendsweep.results import read_results
-from pendsweep.sweep import SweepConfig, run_sweep
-from pendsweep.sync import sync_ratio, xcorr_delay
+from pendsweep.model.params import ENCODER_RESOLUTION, FIG9_PO, FIG11A
+from pendsweep.studies.sweep import SweepConfig, run_sweep
 
 QUIET = dict(
     force_noise=0.0, harmonic3=0.0, harmonic5=0.0, harmonic7=0.0,

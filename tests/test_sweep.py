@@ -14,8 +14,8 @@ import pyarrow.parquet as pq
 import pytest
 
 from pendsweep import ConfigError, ParameterError, ResultsError
-from pendsweep.results import read_results
-from pendsweep.sweep import SweepConfig, multistart_initials, run_sweep, value_range
+from pendsweep.engine.results import read_results
+from pendsweep.studies.sweep import SweepConfig, multistart_initials, run_sweep, value_range
 
 SHORT = dict(transient_periods=5, record_periods=3)
 
@@ -43,7 +43,7 @@ def test_config_rejects_bad_values():
     with pytest.raises(ConfigError, match="mode"):
         SweepConfig("alpha", (1.0,), mode="sideways")
     # A copy checks what changes, the masses and dampings derived from M1/C1 included.
-    from pendsweep.params import TABLE_IV
+    from pendsweep.model.params import TABLE_IV
 
     with pytest.raises(ParameterError, match="M = inf kg"):
         TABLE_IV.replace(M1=1.7e308, M2=1.7e308)
@@ -259,7 +259,7 @@ def test_adaptive_transient_reaches_what_a_long_fixed_transient_reaches():
 def test_staged_evidence_gives_the_labels_of_full_evidence_on_fig11(name):
     """The classifier's staged evidence (extensions that stop at a repeat, the Lyapunov pair only
     where still undecided) labels every point of the paper's Fig. 11 sweeps as the full evidence does."""
-    from pendsweep.sweepfile import load_sweep
+    from pendsweep.studies.sweepfile import load_sweep
 
     config = load_sweep(name).config
     staged = run_sweep(config)

@@ -9,8 +9,7 @@ from click.testing import CliRunner
 
 from pendsweep.cli import main
 from pendsweep.errors import ConfigError
-from pendsweep.hybrid import read_trace
-from pendsweep.sync import (
+from pendsweep.hybrid.sync import (
     DYNAMICS_BAND,
     analyse,
     error_psd,
@@ -20,6 +19,7 @@ from pendsweep.sync import (
     tracking_indices,
     xcorr_delay,
 )
+from pendsweep.hybrid.trace import read_trace
 
 DT = 1e-3
 W = 2 * np.pi * 2.2

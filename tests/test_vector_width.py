@@ -1,4 +1,4 @@
-"""The 512-bit tuning of the kernels (pendsweep._vector_width): applied once, before numba compiles, and only then."""
+"""The 512-bit tuning of the kernels (pendsweep.kernels._vector_width): applied once, before numba compiles, and only then."""
 
 import os
 import subprocess

@@ -39,8 +39,8 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import brentq
 
-from pendsweep.params import TABLE_IV
-from pendsweep.semi_trivial import floquet_multipliers, hopf_floquet
+from pendsweep.analysis.semi_trivial import floquet_multipliers, hopf_floquet
+from pendsweep.model.params import TABLE_IV
 
 HERE = Path(__file__).resolve().parent
 BIN = Path(sys.executable).parent

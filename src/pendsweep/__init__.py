@@ -6,22 +6,25 @@ coupled pendulum-oscillator system using real-time dynamic substructuring".
 
 import importlib
 
+from . import _moved
 from ._version import __version__
 from .errors import ConfigError, ParameterError, PendsweepError, ResultsError
+
+_moved.install()  # 0.1's module paths keep working for one release, with a DeprecationWarning
 
 # Exports from modules that pull in numpy, pandas, scipy or the numba kernels are
 # imported on first use (PEP 562), so that `pendsweep --help` starts in a blink.
 _LAZY = {
     "BACKENDS": ".backends",
     "make_backend": ".backends",
-    "FIG8": ".params",
-    "FIG9_CO": ".params",
-    "FIG9_PO": ".params",
-    "FIG11A": ".params",
-    "FIG11B": ".params",
-    "TABLE_IV": ".params",
-    "ModelParams": ".params",
-    "Status": ".status",
+    "FIG8": ".model.params",
+    "FIG9_CO": ".model.params",
+    "FIG9_PO": ".model.params",
+    "FIG11A": ".model.params",
+    "FIG11B": ".model.params",
+    "TABLE_IV": ".model.params",
+    "ModelParams": ".model.params",
+    "Status": ".backends.status",
 }
 
 

@@ -37,8 +37,8 @@ backend must:
 9. Say whether its records carry measurement or process noise
    (``noisy``; default False). The classifier then measures each record's
    own noise and sets its periodicity tolerance from it
-   (:func:`pendsweep.sections.measured_noise`); a noise-free record must
-   repeat to :data:`pendsweep.sections.PERIODIC_TOL`.
+   (:func:`pendsweep.analysis.sections.measured_noise`); a noise-free record must
+   repeat to :data:`pendsweep.analysis.sections.PERIODIC_TOL`.
 
 :class:`BackendBase` supplies the defaults (a state whose first four
 entries are ``(y, ydot, theta, thetadot)``, the per-point fallback of
@@ -56,8 +56,8 @@ from typing import TYPE_CHECKING, Any, ClassVar, Protocol, runtime_checkable
 import numpy as np
 
 from ..errors import ConfigError
-from ..params import ModelParams
-from ..status import Status
+from ..model.params import ModelParams
+from .status import Status
 
 if TYPE_CHECKING:  # pandas (0.3 s) is imported by the functions that build frames, not by importing this module
     import pandas as pd

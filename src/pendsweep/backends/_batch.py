@@ -19,12 +19,12 @@ import numba as nb
 import numpy as np
 
 from ..errors import ConfigError
-from ..gpu import check_device, run_batch_cuda
 from ..kernels import N_RECORD_COLUMNS, STATUS_OK
 from ..kernels._batched import LANE_GROUP, Lanes, batched_periods
 from ..kernels._layout import SECTION_COLUMNS
-from ..params import KERNEL_FIELDS, ModelParams
+from ..model.params import KERNEL_FIELDS, ModelParams
 from ._base import steps_per_period
+from .gpu import check_device, run_batch_cuda
 
 #: Points integrated in lockstep by one thread (a chunk's working set stays in L1/L2).
 DEFAULT_CHUNK = 128
@@ -46,7 +46,7 @@ class BatchRun(NamedTuple):
     states : float64[n, 4]
         Final ``(y, ydot, theta, thetadot)`` per point (theta wrapped).
     status : int64[n]
-        Kernel status codes (:class:`pendsweep.status.Status` values).
+        Kernel status codes (:class:`pendsweep.backends.status.Status` values).
     periods_done : int64[n]
         Periods completed, transient included, before any divergence.
     """
@@ -83,7 +83,7 @@ def chunk_bounds(steps: np.ndarray, chunk: int) -> np.ndarray:
 
 
 class ParameterColumns(NamedTuple):
-    """What the kernels need of each point's :class:`~pendsweep.params.ModelParams`, at one requested step.
+    """What the kernels need of each point's :class:`~pendsweep.model.params.ModelParams`, at one requested step.
 
     Attributes
     ----------
@@ -169,7 +169,7 @@ def run_batch(
         numba threads for this call (default: all; ignored on a GPU).
     device : {"cpu", "cuda"}
         Where to integrate: the CPU batched kernel, or one GPU thread per
-        point (:func:`pendsweep.gpu.run_batch_cuda`; raises ``ConfigError``
+        point (:func:`pendsweep.backends.gpu.run_batch_cuda`; raises ``ConfigError``
         when no CUDA GPU is usable).
     precision : {"float64", "float32"}
         Arithmetic on the GPU (float32 only with ``device="cuda"``; see docs/gpu.md).
@@ -318,7 +318,7 @@ def batched_evidence(
     signum: str = "step",
     threads: int | None = None,
 ) -> list[tuple[np.ndarray, np.ndarray]]:
-    """The classifier's evidence for many points in one launch (see :mod:`pendsweep.classify`).
+    """The classifier's evidence for many points in one launch (see :mod:`pendsweep.analysis.classify`).
 
     Per point three lanes run in lockstep: the record extended by
     ``extend_periods`` from its final state (no lane when 0), and the two-trajectory Lyapunov

@@ -9,12 +9,12 @@ from typing import TYPE_CHECKING, ClassVar
 import numpy as np
 
 from ..errors import ConfigError
-from ..gpu import GPU_BATCH_POINTS, check_device
 from ..kernels import N_RECORD_COLUMNS, emulated_periods, emulated_trace
-from ..params import ModelParams
-from ..status import Status
+from ..model.params import ModelParams
 from ._base import BackendBase, PointRun, register
 from ._batch import batched_evidence, run_batch
+from .gpu import GPU_BATCH_POINTS, check_device
+from .status import Status
 
 if TYPE_CHECKING:  # pandas (0.3 s) is imported by the functions that build frames, not by importing this module
     import pandas as pd

@@ -62,7 +62,7 @@ from ..kernels._substructured import (
     state_offsets,
     substructured_loop,
 )
-from ..loop import (
+from ..model.loop import (
     ACTUATORS,
     MAX_PREDICTOR_ORDER,
     design_force_filter,
@@ -71,9 +71,10 @@ from ..loop import (
     prediction_horizon,
     predictor_weights,
 )
-from ..params import ENCODER_RESOLUTION, ModelParams
-from ..status import Status
+from ..model.params import ENCODER_RESOLUTION, ModelParams
 from ._base import BackendBase, PointRun, register
+from .status import Status
+from .transports import rig_transport
 
 if TYPE_CHECKING:  # pandas (0.3 s) is imported by the functions that build frames, not by importing this module
     import pandas as pd
@@ -153,8 +154,9 @@ class SubstructuredBackend(BackendBase):
     rig : str
         Empty (default): the virtual rig in this process. ``tcp://HOST:PORT``:
         a remote experimental site (``pendsweep site``, or a real rig's
-        OpenFresco site) takes the commands and returns its measurements
-        (:mod:`pendsweep.site.client`); the transfer-system options then
+        OpenFresco site) takes the commands and returns its measurements,
+        reached through the transport registered for the URL's scheme
+        (:mod:`.transports`; ``tcp``: :mod:`pendsweep.hybrid.client`); the transfer-system options then
         only set the prediction horizon, and the sensor options are the site's.
     """
 
@@ -224,9 +226,7 @@ class SubstructuredBackend(BackendBase):
         need(self.stroke > 0, f"stroke = {self.stroke!r} m must be > 0")
         need(self.seed >= 0, f"seed = {self.seed!r} must be an integer >= 0")
         if self.rig:
-            from ..site.client import parse_rig_url
-
-            parse_rig_url(self.rig)
+            rig_transport(self.rig)
             defaults = {f.name: f.default for f in dataclasses.fields(self)}
             for name in REMOTE_RIG_OPTIONS:
                 need(
@@ -375,9 +375,7 @@ class SubstructuredBackend(BackendBase):
                 f"(expected {self.state_length()}); start from initial_state"
             )
         if self.rig:
-            from ..site.client import run_remote
-
-            return run_remote(self, params, state, transient, n_rec, trace_rows, stride)
+            return rig_transport(self.rig).run(self, params, state, transient, n_rec, trace_rows, stride)
         n = self.steps_per_period(params)
         ticks = (transient + n_rec) * n
         rng = np.random.default_rng([self.seed, int(state[S_TICKS])])

@@ -2,7 +2,7 @@
 
 ``basins`` and ``map`` integrate their starts (cells) in rounds on the
 batched kernel and check between rounds which have settled
-(:func:`pendsweep.basins.settle_runs`). The kernel's own cost per point-step
+(:func:`pendsweep.studies.basins.settle_runs`). The kernel's own cost per point-step
 is measured in the same run on the same starts (a fixed horizon, no checks);
 the ratio of the two is the overhead of the rounds, the settling checks and
 the bookkeeping (goal: at most 1.2). The saving of early stop is reported
@@ -21,8 +21,8 @@ import numpy as np
 
 from ..backends._base import steps_per_period
 from ..backends._batch import run_batch
-from ..basins import BasinConfig, run_basins
-from ..maps import MapConfig, run_map
+from ..studies.basins import BasinConfig, run_basins
+from ..studies.maps import MapConfig, run_map
 from .registry import benchmark
 
 #: Largest cost of a point-step in basins and map over the kernel's own (issue 23).
@@ -70,7 +70,7 @@ def rounds_host_seconds(config: BasinConfig, distinct: int, starts: int) -> dict
     unit of ``starts`` then replays their records, so what is timed is what
     a GPU cannot speed up.
     """
-    from ..basins import EmulatedMap, settle_runs
+    from ..studies.basins import EmulatedMap, settle_runs
 
     params = config.params_at(config.values[0])
     theta0, thetadot0 = config.initial_conditions(0)

@@ -52,8 +52,8 @@ def dense_evidence_per_point(step: float) -> dict:
     """Extension periods and Lyapunov pairs per point of the dense fresh sweep, staged and full evidence."""
     import numpy as np
 
-    from ..classify import classify_runs
-    from ..sweep import SweepConfig, value_range
+    from ..analysis.classify import classify_runs
+    from ..studies.sweep import SweepConfig, value_range
 
     config = SweepConfig(parameter="alpha", values=tuple(value_range(0.0, 45.0, step)), mode="fresh")
     backend = config.make_backend()
@@ -97,8 +97,8 @@ def dense_file_work(step: float) -> dict:
     import cProfile
     import pstats
 
-    from .. import results
-    from ..sweep import SweepConfig, run_sweep, value_range
+    from ..engine import results
+    from ..studies.sweep import SweepConfig, run_sweep, value_range
 
     config = SweepConfig(parameter="alpha", values=tuple(value_range(0.0, 45.0, step)), mode="fresh")
     work = Path(tempfile.mkdtemp(prefix="pendsweep-bench-"))
@@ -160,7 +160,9 @@ def bench_command(quick: bool) -> dict:
                 [*pendsweep, "alpha", "--from", "10", "--to", "10", "-o", "o.parquet", "--overwrite"], work
             ),
             "one_point_naive_script_seconds": wall_time([*naive, "continue", "10", "10", "1"], work),
-            "import_seconds": wall_time([sys.executable, "-c", "import pendsweep.cli._sweep, pendsweep.sweep"], work),
+            "import_seconds": wall_time(
+                [sys.executable, "-c", "import pendsweep.cli._sweep, pendsweep.studies.sweep"], work
+            ),
             "import_numba_pyarrow_pandas_seconds": wall_time(
                 [sys.executable, "-c", "import numba, pyarrow.parquet, pandas"], work
             ),

@@ -5,12 +5,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..analysis.continuation.run import ContinuationConfig, run_continuation
+from ..analysis.continuation.shooting import PendulumShooting
 from ..backends import make_backend
-from ..continuation.run import ContinuationConfig, run_continuation
-from ..continuation.shooting import PendulumShooting
-from ..hopf import hopf_floquet
-from ..params import TABLE_IV
-from ..sweep import SweepConfig, run_sweep, value_range
+from ..model.params import TABLE_IV
+from ..studies.hopf import hopf_floquet
+from ..studies.sweep import SweepConfig, run_sweep, value_range
 from .registry import benchmark, best_of
 
 

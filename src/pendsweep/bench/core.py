@@ -11,9 +11,9 @@ from scipy.integrate import solve_ivp
 
 from ..backends import make_backend
 from ..kernels import PHYSICS, eq11_params
-from ..params import FIG9_PO, ModelParams
-from ..sweep import run_sweep
-from ..sweepfile import SWEEPS_DIR, load_sweep
+from ..model.params import FIG9_PO, ModelParams
+from ..studies.sweep import run_sweep
+from ..studies.sweepfile import SWEEPS_DIR, load_sweep
 from .registry import benchmark, best_of
 
 

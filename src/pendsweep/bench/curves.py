@@ -17,11 +17,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..continuation.curve_run import config_from_file, run_curve
-from ..continuation.run import ContinuationConfig, run_continuation, write_json
-from ..hopf import HopfConfig, fe_for_omega_hat, hopf_floquet, run_hopf
-from ..params import TABLE_IV
-from ..sweep import SweepConfig, run_sweep, value_range
+from ..analysis.continuation.curve_run import config_from_file, run_curve
+from ..analysis.continuation.run import ContinuationConfig, run_continuation, write_json
+from ..model.params import TABLE_IV
+from ..studies.hopf import HopfConfig, fe_for_omega_hat, hopf_floquet, run_hopf
+from ..studies.sweep import SweepConfig, run_sweep, value_range
 from .registry import benchmark, best_of
 
 SMOOTH = {"fe": 2.5, "b1": 0.0, "b3": 0.0}

@@ -1,6 +1,6 @@
 """Diagnosis benchmark: verdicts on independently generated records (``make bench``).
 
-Records come from :mod:`pendsweep.diagnose.testbench` (no code shared with the
+Records come from :mod:`pendsweep.measured.diagnose.testbench` (no code shared with the
 replay kernels) with seeds from its ``TEST_SEEDS`` range (B); the verdict
 thresholds were chosen on ``CALIBRATION_SEEDS`` (range A) only
 (``python -m pendsweep.bench.diagnosis calibrate N`` prints the statistics they
@@ -33,10 +33,10 @@ FIGURE = Path("results/diagnosis_confusion.png")
 
 def evaluate(seed: int) -> dict:
     """Generate the case of ``seed``, diagnose it, and score the verdict."""
-    from ..diagnose.chain import diagnose_records
-    from ..diagnose.effects import EFFECTS
-    from ..diagnose.populations import draw_case
-    from ..diagnose.testbench import generate
+    from ..measured.diagnose.chain import diagnose_records
+    from ..measured.diagnose.effects import EFFECTS
+    from ..measured.diagnose.populations import draw_case
+    from ..measured.diagnose.testbench import generate
 
     category, case = draw_case(seed)
     record = generate(case)
@@ -78,11 +78,11 @@ def evaluate(seed: int) -> dict:
 
 
 def evaluate_look_alike(seed: int, kind: str) -> dict:
-    """Generate the look-alike record of ``seed`` (:func:`~pendsweep.diagnose.populations.draw_look_alike_case`),
+    """Generate the look-alike record of ``seed`` (:func:`~pendsweep.measured.diagnose.populations.draw_look_alike_case`),
     diagnose it as a user would, and score it: right alone (no look-alike tied), right or tied, the tie's reason."""
-    from ..diagnose.chain import diagnose_records
-    from ..diagnose.effects import EFFECTS
-    from ..diagnose.populations import LOOK_ALIKE_CAUSES, SEPARATING_FORCINGS, generate_look_alike_case
+    from ..measured.diagnose.chain import diagnose_records
+    from ..measured.diagnose.effects import EFFECTS
+    from ..measured.diagnose.populations import LOOK_ALIKE_CAUSES, SEPARATING_FORCINGS, generate_look_alike_case
 
     forcing, case, record = generate_look_alike_case(seed, kind)
     t0 = time.perf_counter()
@@ -291,7 +291,7 @@ def plot(summary: dict, path: Path) -> Path:
 @benchmark("diagnosis")
 def bench_diagnosis(quick: bool) -> dict:
     """Verdicts on RECORDS independently generated records of the test seed range."""
-    from ..diagnose.testbench import TEST_SEEDS
+    from ..measured.diagnose.testbench import TEST_SEEDS
 
     n = QUICK_RECORDS if quick else RECORDS
     t0 = time.perf_counter()
@@ -315,7 +315,7 @@ def main(argv: list[str]) -> None:
     KIND ``forced`` or ``substructured`` calibrates on look-alike records (issue 34) instead."""
     import json
 
-    from ..diagnose.testbench import CALIBRATION_SEEDS
+    from ..measured.diagnose.testbench import CALIBRATION_SEEDS
 
     n = int(argv[1]) if len(argv) > 1 else 60
     if len(argv) > 3:

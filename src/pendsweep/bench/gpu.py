@@ -36,8 +36,8 @@ import numpy as np
 
 from ..backends._base import steps_per_period
 from ..backends._batch import run_batch
-from ..gpu import cuda_unavailable_reason, device_name
-from ..params import FIG11A
+from ..backends.gpu import cuda_unavailable_reason, device_name
+from ..model.params import FIG11A
 from .registry import benchmark, best_of
 from .throughput import jax_rk4_factory, peer_points
 
@@ -105,7 +105,7 @@ def jax_gpu(n_side: int, periods: int) -> dict:
 def hopf_grid(device: str, quick: bool) -> dict:
     """The Fig. 10(b) simulated Hopf grid (bisection in lockstep batches) on ``device``."""
     from ..figures.hopf import BIG_KICK, FIG10B_MASSES, OMEGA_HAT
-    from ..hopf import HopfConfig, run_hopf
+    from ..studies.hopf import HopfConfig, run_hopf
 
     omega_hat = tuple(np.linspace(*OMEGA_HAT, 4 if quick else 25))
     masses = FIG10B_MASSES[::3] if quick else FIG10B_MASSES
@@ -145,7 +145,7 @@ def basin_map(n_side: int, max_periods: int, device: str, precision: str = "floa
     """``pendsweep basins --alpha 40 --fe 2.5 --grid NxN --max-periods P`` on ``device``, its result file written."""
     import pyarrow.parquet as pq
 
-    from ..basins import BasinConfig, run_basins
+    from ..studies.basins import BasinConfig, run_basins
 
     config = BasinConfig(
         "alpha", (40.0,), {"fe": 2.5}, sampling="grid", grid=(n_side, n_side), max_periods=max_periods,

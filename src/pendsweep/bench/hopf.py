@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..backends import make_backend
-from ..hopf import HopfConfig, run_hopf
-from ..params import TABLE_IV
+from ..model.params import TABLE_IV
+from ..studies.hopf import HopfConfig, run_hopf
 from .registry import benchmark, best_of
 
 

@@ -27,7 +27,7 @@ _MASKED_STORE = re.compile(r"^\s+vmaskmovpd\s+%[xy]mm\d+,\s*%[xy]mm\d+,\s*\S*\("
 #: Vector ISAs whose lane loop make bench and the tests inspect: ``NUMBA_CPU_NAME`` and ``NUMBA_CPU_FEATURES``.
 #: The features are given in full: with a CPU name alone numba still passes the host's features (an
 #: AVX-512 host's would leak into an AVX2 target). The AVX-512 target drops ``prefer-256-bit`` as
-#: :mod:`pendsweep._vector_width` does on such a host.
+#: :mod:`pendsweep.kernels._vector_width` does on such a host.
 TARGETS_ISA = {"avx2": ("haswell", ""), "avx512": ("skylake-avx512", "-prefer-256-bit")}
 
 

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from ..diagnose import Replay, diagnose, synthesize
-from ..params import FIG9_PO, TABLE_IV
+from ..measured.diagnose import Replay, diagnose, synthesize
+from ..model.params import FIG9_PO, TABLE_IV
 from .registry import benchmark, best_of
 
 

@@ -92,7 +92,7 @@ class NullSite:
 
 
 def _config(values, transient: int, record: int, options: dict):
-    from ..sweep import SweepConfig
+    from ..studies.sweep import SweepConfig
 
     return SweepConfig("alpha", tuple(values), {"fe": 2.5}, transient_periods=transient, record_periods=record,
                        kick=0.0, backend="substructured", backend_options=options)  # fmt: skip
@@ -100,8 +100,8 @@ def _config(values, transient: int, record: int, options: dict):
 
 def _client_run(values, transient: int, record: int, port: int, out: Path, **options) -> tuple[float, object]:
     """The user's command as an API call: a continuous test writing its results and time series; (wall, rows)."""
-    from ..site.continuous import RigWatch
-    from ..sweep import run_sweep
+    from ..studies.rig_sweep import RigWatch
+    from ..studies.sweep import run_sweep
 
     config = _config(values, transient, record, {"rig": f"tcp://127.0.0.1:{port}", **options})
     start = time.perf_counter()
@@ -146,7 +146,7 @@ def _resume_cost(tmp: Path) -> dict:
 
 @benchmark("rig_sweep")
 def bench_rig_sweep(quick: bool) -> dict:
-    from ..sweep import run_sweep
+    from ..studies.sweep import run_sweep
 
     if quick:
         values, transient, record = np.arange(0.0, 45.01, 5.0), 10, 5

@@ -1,11 +1,11 @@
 """Servo-rig benchmark: substructured records of rigs and controllers unlike the replay's (issue 22).
 
-Records come from :func:`pendsweep.diagnose.populations.generate_rig_case`: first-
+Records come from :func:`pendsweep.measured.diagnose.populations.generate_rig_case`: first-
 and second-order servos behind transport delays (and near-ideal ones), commands
 ramped or held, forward predictors, load-cell lags, central-difference
 controllers, calibration errors of the nominal delay, LVDT noise and drift
 (no code shared with the replays). Each record is diagnosed part by part
-(:func:`pendsweep.diagnose.chain.diagnose_parts`); the first
+(:func:`pendsweep.measured.diagnose.chain.diagnose_parts`); the first
 :data:`CLOSED_LOOP_RECORDS` also by the closed-loop replay, the method before
 issue 22, for comparison. Seeds: ``TEST_SEEDS`` (range B); the tolerances were
 chosen on ``CALIBRATION_SEEDS``.
@@ -56,10 +56,10 @@ def right(truth: str, verdict: str) -> bool:
 
 def evaluate(seed: int, closed_loop: bool) -> dict:
     """Generate the servo-rig case of ``seed``, diagnose it (and in closed loop), score the verdicts."""
-    from ..diagnose import Replay, diagnose
-    from ..diagnose.chain import diagnose_parts
-    from ..diagnose.effects import PART_OF
-    from ..diagnose.populations import LOOK_ALIKES, generate_rig_case
+    from ..measured.diagnose import Replay, diagnose
+    from ..measured.diagnose.chain import diagnose_parts
+    from ..measured.diagnose.effects import PART_OF
+    from ..measured.diagnose.populations import LOOK_ALIKES, generate_rig_case
 
     category, case, record = generate_rig_case(seed)
     t0 = time.perf_counter()
@@ -98,7 +98,7 @@ def evaluate(seed: int, closed_loop: bool) -> dict:
 
 
 def _estimate(js: dict, cause: str) -> float | None:
-    from ..diagnose.effects import ACTUATOR_CAUSES, EFFECTS
+    from ..measured.diagnose.effects import ACTUATOR_CAUSES, EFFECTS
 
     if cause in ("actuator_delay", "servo_bandwidth"):
         return js["estimate"].get("tau") if cause == "actuator_delay" else None
@@ -107,10 +107,10 @@ def _estimate(js: dict, cause: str) -> float | None:
 
 
 def evaluate_joint(seed: int) -> dict:
-    """Several records of one servo rig (:func:`~pendsweep.diagnose.populations.generate_rig_session`) diagnosed
+    """Several records of one servo rig (:func:`~pendsweep.measured.diagnose.populations.generate_rig_session`) diagnosed
     jointly, part by part, and scored as one record."""
-    from ..diagnose.chain import diagnose_parts
-    from ..diagnose.populations import generate_rig_session
+    from ..measured.diagnose.chain import diagnose_parts
+    from ..measured.diagnose.populations import generate_rig_session
 
     category, cases, records = generate_rig_session(seed, JOINT_RECORDS)
     t0 = time.perf_counter()
@@ -171,7 +171,7 @@ def summarize(rows: list[dict]) -> dict:
     def rate(rs, ok):
         return sum(map(ok, rs)) / len(rs) if rs else math.nan
 
-    from ..diagnose.populations import LOOK_ALIKES
+    from ..measured.diagnose.populations import LOOK_ALIKES
 
     look = [r for r in singles if r["truth"] in LOOK_ALIKES]
     confusion: dict[str, Counter] = {}
@@ -238,7 +238,7 @@ def plot(summary: dict, path: Path) -> Path:
 @benchmark("rigs")
 def bench_rigs(quick: bool) -> dict:
     """Part-by-part verdicts on RECORDS servo-rig records of the test seed range (and closed loop on some)."""
-    from ..diagnose.testbench import TEST_SEEDS
+    from ..measured.diagnose.testbench import TEST_SEEDS
 
     n = QUICK_RECORDS if quick else RECORDS
     t0 = time.perf_counter()

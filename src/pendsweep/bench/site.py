@@ -37,8 +37,8 @@ def start_site(*args: str, once: bool = True) -> tuple[subprocess.Popen, int]:
 
 
 def _opensees_against_site(periods: int, *site_args: str) -> dict:
-    from ..columns import read_parquet, to_numpy
-    from ..site.opensees import run_example
+    from ..engine.columns import read_parquet, to_numpy
+    from ..hybrid.opensees import run_example
 
     with tempfile.TemporaryDirectory() as tmp:
         log = Path(tmp) / "log.parquet"
@@ -66,7 +66,7 @@ def _opensees_against_site(periods: int, *site_args: str) -> dict:
 
 
 def _opensees_against_naive(periods: int) -> dict:
-    from ..site.opensees import run_example
+    from ..hybrid.opensees import run_example
 
     script = Path(__file__).with_name("naive_site.py")
     proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True)
@@ -79,7 +79,7 @@ def _opensees_against_naive(periods: int) -> dict:
 
 def _client_against_site(periods: int) -> dict:
     from ..backends import make_backend
-    from ..params import ModelParams
+    from ..model.params import ModelParams
 
     params = ModelParams.from_mapping({"alpha": ALPHA, "fe": FE})
     proc, port = start_site("--set", f"fe={FE}", "-B", "actuator=servo")
@@ -108,7 +108,7 @@ def _client_against_site(periods: int) -> dict:
 @benchmark("site")
 def bench_site(quick: bool) -> dict:
     """Steps per second and service times of a hybrid test with OpenSees as the client (dt = 1 ms)."""
-    from ..site.opensees import EXAMPLE, opensees_library_dir
+    from ..hybrid.opensees import EXAMPLE, opensees_library_dir
 
     if opensees_library_dir() is None or not EXAMPLE.exists():
         return {"skipped": "openseespy (the test extra) or examples/opensees_pendulum_site.py is missing"}

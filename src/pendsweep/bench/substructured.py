@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from ..backends import make_backend
-from ..params import FIG9_PO
+from ..model.params import FIG9_PO
 from .registry import benchmark, best_of
 
 #: Issue 3's budget: a substructured point may cost this many emulated points.

@@ -34,7 +34,7 @@ import numpy as np
 from ..backends import make_backend
 from ..backends._batch import run_batch
 from ..kernels import WIDE_VECTORS, wrap_angle
-from ..params import TABLE_IV, ModelParams
+from ..model.params import TABLE_IV, ModelParams
 from .core import solve_ivp_point
 from .lane_loop import TARGETS_ISA, target_environment, vector_instructions, vector_instructions_for
 from .registry import benchmark
@@ -191,7 +191,7 @@ def _build_row(name: str, env: dict[str, str], grid: tuple[int, int], horizon: i
 def _narrow_vectors_row(grid: tuple[int, int], horizon: int, threads: int) -> dict | None:
     """The batched kernel built with numba's own tuning (256-bit vectors), in a fresh process.
 
-    The peer of :mod:`pendsweep._vector_width`: the same points and horizon; None
+    The peer of :mod:`pendsweep.kernels._vector_width`: the same points and horizon; None
     where this process does not use 512-bit vectors (nothing to compare).
     """
     if not WIDE_VECTORS:

@@ -10,7 +10,7 @@ from click.core import ParameterSource
 
 from .._version import __version__
 from ..errors import PendsweepError
-from ..sweepfile import MAX_ANGLE, MAX_PERIODS
+from ..studies.sweepfile import MAX_ANGLE, MAX_PERIODS
 
 
 class UsageFailure(click.ClickException):

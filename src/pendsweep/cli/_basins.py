@@ -11,9 +11,9 @@ from typing import Any
 
 import click
 
+from ..engine.scan import per_start_max_work
 from ..errors import ConfigError, ParameterError
-from ..params import PARAM_SPECS
-from ..scan import per_start_max_work
+from ..model.params import PARAM_SPECS
 from ._app import ANGLE, FINITE, RATE, SEED, LazyChoice, main
 from ._checks import FIGURE_SUFFIXES, backend_option, check_output, key_values
 from ._executor import apply_options, checkpoint_option, executor_options, max_work, work_options
@@ -226,11 +226,11 @@ def basins_command(parameter, start, stop, step, points, **kw):
       pendsweep basins --alpha 40 --fe 2.5 --grid 200x200 --max-periods 1000 -o b.parquet --json b.json --plot b.png
       pendsweep basins alpha --from 30 --to 45 --step 0.5 --samples 500 --plot fractions.png
     """
-    from ..basins import BasinConfig, run_basins, scan_summary
-    from ..executors import make_executor
+    from ..backends.gpu import with_device
+    from ..engine.executors import make_executor
     from ..figures.basins import plot_basin, plot_scan
-    from ..gpu import with_device
-    from ..sweep import value_range
+    from ..studies.basins import BasinConfig, run_basins, scan_summary
+    from ..studies.sweep import value_range
 
     check_output(kw["output"], "-o/--output", (".parquet",))
     check_output(kw["json_path"], "--json", (".json",))
@@ -342,7 +342,7 @@ def _json_default(value):
 
 def _rewrite_with_attractors(output: Path, rows) -> None:
     """Add the attractor id column to the finished results file (same metadata, atomic)."""
-    from ..results import atomic_write_table, read_metadata, with_metadata
+    from ..engine.results import atomic_write_table, read_metadata, with_metadata
 
     if "attractor" in read_metadata(output).get("columns_added", []):
         return
@@ -418,10 +418,10 @@ def map_command(x, y, **kw):
     """
     import pyarrow.parquet as pq
 
-    from ..executors import make_executor
+    from ..backends.gpu import require_cuda
+    from ..engine.executors import make_executor
     from ..figures.basins import plot_map
-    from ..gpu import require_cuda
-    from ..maps import MapConfig, hopf_boundaries, parse_axis, run_map
+    from ..studies.maps import MapConfig, hopf_boundaries, parse_axis, run_map
 
     check_output(kw["output"], "-o/--output", (".parquet",))
     check_output(kw["plot_path"], "--plot", FIGURE_SUFFIXES)

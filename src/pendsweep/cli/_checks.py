@@ -131,7 +131,7 @@ def key_values(pairs: Iterable[str], what: str) -> dict[str, str]:
 
 def model_sets(pairs: Iterable[str], what: str = "--set") -> dict[str, float]:
     """``NAME=VALUE`` model overrides: known parameter names and finite numbers (SI units)."""
-    from ..params import PARAM_SPECS
+    from ..model.params import PARAM_SPECS
 
     out = {}
     for name, text in key_values(pairs, what).items():
@@ -158,7 +158,7 @@ def refuse_fixed(swept: str, fixed: dict[str, float], where: dict[str, str]) -> 
 
 def check_memory(needed: float, what: str) -> None:
     """Refuse (exit 2) work whose results need more memory [bytes] than this machine has, naming both."""
-    from ..scan import machine_memory
+    from ..engine.scan import machine_memory
 
     memory = machine_memory()
     if needed > memory:

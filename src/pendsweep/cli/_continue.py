@@ -29,7 +29,7 @@ def _deprecated_json(value: Path | None) -> Path | None:
 
 
 @main.command("continue")
-@click.argument("parameter", type=LazyChoice(".continuation.run", "CONTINUABLE"))
+@click.argument("parameter", type=LazyChoice(".analysis.continuation.run", "CONTINUABLE"))
 @click.option(
     "--from",
     "start",
@@ -200,8 +200,14 @@ def continue_command(
     by finite differences; PARAMETER may then also be transport_delay [s],
     servo_bandwidth [Hz], servo_damping or tau_hat [s].
     """
-    from ..continuation import ContinuationError
-    from ..continuation.run import START_SHIFT_WARN, ContinuationConfig, run_continuation, start_from_file, write_json
+    from ..analysis.continuation import ContinuationError
+    from ..analysis.continuation.run import (
+        START_SHIFT_WARN,
+        ContinuationConfig,
+        run_continuation,
+        start_from_file,
+        write_json,
+    )
 
     if json_path is not None and json_path_old is not None:
         raise ConfigError("give the result file once (-o/--output; --json is its old name)")
@@ -250,7 +256,7 @@ def continue_command(
         backend=backend,
         backend_options=key_values(backend_opts, "-B"),
     )
-    from ..scan import check_work
+    from ..engine.scan import check_work
 
     check_work(config.work(), work_limit(max_work, yes))
     for sweep in overlays:  # refuse unreadable or other-parameter sweeps before the run, not after
@@ -258,7 +264,7 @@ def continue_command(
         if swept != parameter:
             raise ConfigError(f"--overlay {str(sweep)!r} sweeps {swept!r}, not {parameter!r}")
     if backend != "emulated":
-        from ..continuation.loop import SMOOTHED_OFF
+        from ..analysis.continuation.loop import SMOOTHED_OFF
 
         dropped = [name for name in SMOOTHED_OFF if name in config.backend_options]
         if dropped:
@@ -304,6 +310,6 @@ def continue_command(
         )
     click.echo(f"wrote {json_path}", err=True)
     if plot_path is not None:
-        from ..continuation.overlay import plot_any
+        from ..figures.overlay import plot_any
 
         click.echo(f"plot -> {plot_any([*overlays, json_path], plot_path, observable)}")

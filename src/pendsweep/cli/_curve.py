@@ -93,8 +93,8 @@ def curve_command(
     resonances and the points where it meets another curve (fold-flip,
     fold-NS, flip-NS). Exit 1 when the point does not converge at its start.
     """
-    from ..continuation import ContinuationError
-    from ..continuation.curve_run import config_from_file, curve_events, run_curve
+    from ..analysis.continuation import ContinuationError
+    from ..analysis.continuation.curve_run import config_from_file, curve_events, run_curve
 
     config = config_from_file(
         start,
@@ -123,7 +123,7 @@ def curve_command(
         rows = run_curve(config, output, progress=progress, resume=resume)
     except ContinuationError as exc:
         raise click.ClickException(str(exc)) from None
-    from ..results import read_metadata
+    from ..engine.results import read_metadata
 
     ends = read_metadata(output)["ends"]
     first, kind = config.first, config.kind
@@ -185,8 +185,8 @@ def tolerance_command(
     frequency) that keeps the bifurcation within --within of the emulated
     value on a stable loop, and where the loop itself loses stability.
     """
-    from ..continuation import ContinuationError
-    from ..continuation.tolerance import ToleranceConfig, run_tolerance
+    from ..analysis.continuation import ContinuationError
+    from ..analysis.continuation.tolerance import ToleranceConfig, run_tolerance
 
     try:
         order_list = tuple(int(v) for v in orders.split(","))

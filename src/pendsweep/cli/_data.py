@@ -95,11 +95,11 @@ def diagnose(data, json_out, report_dir, horizon, folds, causes, jobs, model_fil
     transfer system (actuator, load cell, encoder), physical substructure and
     numerical model (docs/measured-data.md). Prints the verdict JSON.
     """
-    from ..data import read_record
-    from ..diagnose.chain import PartsDiagnosis, diagnose_records, diagnosis_work_of
-    from ..diagnose.parts_report import write_parts_report
-    from ..diagnose.report import write_report
-    from ..scan import check_jobs, check_work
+    from ..engine.scan import check_jobs, check_work
+    from ..measured.diagnose.chain import PartsDiagnosis, diagnose_records, diagnosis_work_of
+    from ..measured.diagnose.parts_report import write_parts_report
+    from ..measured.diagnose.report import write_report
+    from ..measured.records import read_record
     from ._sweep_options import load_model_file
 
     for path in data:
@@ -201,9 +201,9 @@ def synth(out, output, kind, effects, params, params_old, duration, rate, seed, 
     The record, -o FILE (or OUT, the older positional spelling), ends in .csv
     (a .json sidecar is written next to it) or .parquet.
     """
-    from ..data import write_record
-    from ..diagnose import synthesize
-    from ..params import FIG9_PO, TABLE_IV
+    from ..measured.diagnose import synthesize
+    from ..measured.records import write_record
+    from ..model.params import FIG9_PO, TABLE_IV
     from ._checks import model_sets
 
     out, spelled = positional_or_output(out, output, "OUT")
@@ -271,9 +271,9 @@ def fit_damping(data, json_out, params_out, mass, skip, plot):
     the equivalent length L [m], and the maximum relative envelope error of
     the fit and of each prediction (the paper reached <= 2 %).
     """
-    from ..data import read_record
-    from ..diagnose.damping import fit_damping as run
-    from ..diagnose.damping import predict
+    from ..measured.diagnose.damping import fit_damping as run
+    from ..measured.diagnose.damping import predict
+    from ..measured.records import read_record
     from ._checks import FIGURE_SUFFIXES
 
     for p in data:
@@ -311,13 +311,13 @@ def fit_damping(data, json_out, params_out, mass, skip, plot):
         json_out.parent.mkdir(parents=True, exist_ok=True)
         json_out.write_text(json.dumps(out, indent=1) + "\n")
     if params_out:
-        from ..diagnose.effects import model_file
+        from ..measured.diagnose.effects import model_file
 
         model = records[0].params.replace(**fit.model_params(mass if mass is not None else records[0].params.m))
         params_out.parent.mkdir(parents=True, exist_ok=True)
         params_out.write_text(json.dumps(model_file(model), indent=1, sort_keys=True) + "\n")
     if plot:
-        from ..diagnose.report import plot_envelopes
+        from ..measured.diagnose.report import plot_envelopes
 
         plot_envelopes(
             {str(data[0]) + " (fit)": (fit.measured, fit.simulated)}

@@ -6,8 +6,8 @@ from collections.abc import Callable
 
 import click
 
-from ..executors import EXECUTORS, SCHEDULER_ENV
-from ..scan import DEFAULT_MAX_WORK
+from ..engine.executors import EXECUTORS, SCHEDULER_ENV
+from ..engine.scan import DEFAULT_MAX_WORK
 from ._app import FiniteFloat
 
 

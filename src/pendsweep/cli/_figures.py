@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from ..errors import ConfigError
-from ..params import PARAM_SPECS, ModelParams
+from ..model.params import PARAM_SPECS, ModelParams
 from ._app import PATH, main
 from ._checks import FIGURE_SUFFIXES, check_input, check_output, check_output_dir
 from ._sweep import read_sweep_metadata
@@ -37,7 +37,7 @@ def plot_command(results, output, observable, title):
     Continuation results (.json from `pendsweep continue`) are drawn on top as branches:
     solid stable, dashed unstable, markers at bifurcations.
     """
-    from ..continuation.overlay import plot_any
+    from ..figures.overlay import plot_any
 
     for path in results:
         if path.suffix == ".json":
@@ -50,7 +50,7 @@ def plot_command(results, output, observable, title):
 
 def check_continuation_document(path: Path) -> None:
     """Refuse a ``.json`` that is not a readable continuation result, naming it."""
-    from ..continuation.run import read_json
+    from ..analysis.continuation.run import read_json
 
     check_input(path, "continuation result")
     try:
@@ -89,7 +89,7 @@ def figures_command(names, outdir, outdir_old, quick):
         for path in written:
             click.echo(f"wrote {path}")
         if not written:
-            from ..data import DATA_ENV
+            from ..measured.records import DATA_ENV
 
             click.echo(f"{name}: skipped, its measured data were not found (set {DATA_ENV} to the folder holding "
                        "measured/free-swing-rotary-pendulum)", err=True)  # fmt: skip

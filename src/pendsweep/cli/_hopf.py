@@ -9,8 +9,8 @@ from pathlib import Path
 import click
 
 from ..errors import ConfigError
-from ..params import ENCODER_RESOLUTION
-from ..sweepfile import MAX_POINTS
+from ..model.params import ENCODER_RESOLUTION
+from ..studies.sweepfile import MAX_POINTS
 from ._app import PATH, SMALL_ANGLE, FiniteFloat, LazyChoice, main
 from ._checks import check_output, key_values, model_sets
 from ._executor import apply_options, checkpoint_option, executor_options, work_options
@@ -24,7 +24,7 @@ DEFAULT_OUTPUT = Path("results/hopf.parquet")
 
 def parse_values(text: str, what: str) -> tuple[float, ...]:
     """``FROM:TO:N`` (N points, ends included), ``A,B,C`` or a single value."""
-    from ..sweep import value_range
+    from ..studies.sweep import value_range
 
     accepted = "give FROM:TO:N (N points), a comma list A,B,C or a single number"
     try:
@@ -45,7 +45,7 @@ MAX_ROWS_SHOWN = 60
 
 
 def _all_methods() -> str:
-    from ..hopf import METHODS
+    from ..studies.hopf import METHODS
 
     return ",".join(METHODS)
 
@@ -176,9 +176,9 @@ def hopf(
     final bisection bracket, kick [rad], runs) and prints the table.
     Rerunning the same command resumes an interrupted scan.
     """
-    from ..executors import make_executor
-    from ..gpu import with_device
-    from ..hopf import HopfConfig, hopf_metadata, run_hopf
+    from ..backends.gpu import with_device
+    from ..engine.executors import make_executor
+    from ..studies.hopf import HopfConfig, hopf_metadata, run_hopf
 
     check_output(output, "-o/--output", (".parquet",))
     fixed = model_sets(model)

@@ -85,14 +85,14 @@ def site_command(port, host, allow, once, output, theta0, thetadot0, sets, rig_o
     """
     import signal
 
-    from ..params import ModelParams
-    from ..site.access import LOOPBACK_NETWORKS, loopback_only_warning, parse_allow
-    from ..site.log import SiteLog
-    from ..site.rig import rig_from_options
-    from ..site.server import SiteServer
+    from ..hybrid.access import LOOPBACK_NETWORKS, loopback_only_warning, parse_allow
+    from ..hybrid.log import SiteLog
+    from ..hybrid.rig import rig_from_options
+    from ..hybrid.server import SiteServer
+    from ..model.params import ModelParams
 
     if output is not None:
-        from ..results import check_writable
+        from ..engine.results import check_writable
 
         check_output(output, "-o/--output", (".parquet",))
         check_writable(output)  # before listening: a session must never be lost to an unwritable log

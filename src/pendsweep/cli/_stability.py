@@ -7,7 +7,7 @@ import math
 
 import click
 
-from ..params import TABLE_IV, LoopParams
+from ..model.params import TABLE_IV, LoopParams
 from ._app import PATH, STEP_S, FiniteFloat, UsageFailure, main
 from ._checks import FIGURE_SUFFIXES, check_output
 
@@ -159,7 +159,7 @@ def margin(M1, C1, K, ms, C2, actuator, dt, servo_bandwidth, servo_damping, pred
     runs it (sampled at dt, servo or delay actuator, optional predictor and
     force filter): the critical transport delay without and with compensation.
     """
-    from ..stability import (
+    from ..analysis.stability import (
         SampledLoop,
         delay_margin,
         format_crossings,
@@ -241,6 +241,6 @@ def margin(M1, C1, K, ms, C2, actuator, dt, servo_bandwidth, servo_damping, pred
 
 
 def _describe(cfg) -> str:
-    """One line naming a :class:`~pendsweep.stability.SampledLoop`'s predictor."""
+    """One line naming a :class:`~pendsweep.analysis.stability.SampledLoop`'s predictor."""
     horizon = "tau_hat matched to the effective delay" if cfg.tau_hat is None else f"tau_hat = {cfg.tau_hat:g} s"
     return f"predictor n = {cfg.predictor_order}, N = {cfg.predictor_points}, {horizon}"

@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from ..errors import ConfigError
-from ..params import ModelParams
+from ..model.params import ModelParams
 from ._app import ANGLE, FINITE, PATH, RATE, FiniteFloat, LazyChoice, main
 from ._checks import (
     FIGURE_SUFFIXES,
@@ -106,8 +106,8 @@ def trace_command(
     F_fb (force fed to the model), sync_error (y* - x_meas).
     """
     from ..backends import make_backend
-    from ..hybrid import run_trace, write_trace
-    from ..scan import Work, check_work
+    from ..engine.scan import Work, check_work
+    from ..hybrid.trace import run_trace, write_trace
 
     output, spelled = positional_or_output(positional_output, output, "OUTPUT")
     check_output(output, spelled, (".parquet",))
@@ -146,7 +146,7 @@ def trace_command(
     help="Figure file, .png/.pdf/.svg (default: TRACE with .png).",
 )
 @click.option(
-    "--reference", type=LazyChoice(".sync", "TABLE_I"), default=None, help="Also print the paper's Table I row."
+    "--reference", type=LazyChoice(".hybrid.sync", "TABLE_I"), default=None, help="Also print the paper's Table I row."
 )
 @click.option(
     "--window",
@@ -171,8 +171,8 @@ def sync_command(trace, output, reference, window, session):
     estimate, and writes the estimate's time series next to the figure.
     """
     from ..figures.hybrid import draw_sync
-    from ..hybrid import read_trace
-    from ..sync import analyse
+    from ..hybrid.sync import analyse
+    from ..hybrid.trace import read_trace
 
     check_input(trace, "trace")
     path = check_output(output or Path(trace).with_suffix(".png"), "-o/--output", FIGURE_SUFFIXES)

@@ -11,7 +11,7 @@ from typing import Any
 import click
 
 from ..errors import ConfigError, ParameterError, PendsweepError
-from ..params import PARAM_SPECS
+from ..model.params import PARAM_SPECS
 from ._app import PATH, main
 from ._checks import FIGURE_SUFFIXES, check_input, check_output
 from ._executor import apply_options, checkpoint_option, executor_options, max_work, work_options
@@ -28,8 +28,8 @@ def prepare_output(output: Path, config_hash: str, *, default: bool, overwrite: 
     ``-o`` is never replaced without ``--overwrite``; when it holds a file that
     cannot be read back as results, that is a runtime failure (exit 1).
     """
+    from ..engine.results import read_metadata
     from ..errors import CorruptResultsError
-    from ..results import read_metadata
 
     if overwrite or not output.is_file():
         return overwrite
@@ -69,11 +69,11 @@ def execute(
     results of another configuration there are replaced (with a note). A
     remote rig's continuous test (continue mode) keeps its time series beside
     ``output``, redraws ``plot_path`` after every point and ramps down over
-    ``stop_periods`` on a safe stop (:mod:`pendsweep.site.continuous`).
+    ``stop_periods`` on a safe stop (:mod:`pendsweep.studies.rig_sweep`).
     """
-    from ..executors import make_executor
-    from ..scan import check_jobs
-    from ..sweep import run_sweep, sweep_metadata
+    from ..engine.executors import make_executor
+    from ..engine.scan import check_jobs
+    from ..studies.sweep import run_sweep, sweep_metadata
 
     check_jobs(jobs)  # before the output is looked at, so a bad -j prints no note about it
     check_output(output, "-o/--output", (".parquet",))
@@ -89,7 +89,7 @@ def execute(
     rig_test = bool(config.backend_options.get("rig")) and config.mode == "continue"
     watch = None
     if rig_test:
-        from ..site.continuous import RigWatch, default_watch
+        from ..studies.rig_sweep import RigWatch, default_watch
 
         watch = default_watch(RigWatch(plot=plot_path, stop_periods=stop_periods), output)
         progress = False  # one line per point instead of a bar
@@ -117,14 +117,14 @@ def execute(
     if plot_path is not None and watch is not None:
         click.echo(f"plot -> {plot_path} (redrawn after every point)")
     elif plot_path is not None:
-        from ..plotting import plot_files
+        from ..figures.plotting import plot_files
 
         click.echo(f"plot -> {plot_files([output], plot_path, title=title)}")
 
 
 def _run_sweep_stopping_safely(run_sweep, *args, **kwargs):
     """``run_sweep``, with a rig test's safe stop told that its finished points are kept for a resume."""
-    from ..site.session import RigStopped
+    from ..hybrid.session import RigStopped
 
     try:
         return run_sweep(*args, **kwargs)
@@ -139,7 +139,7 @@ def unit_summary(rows) -> str:
     """
     if not rows.num_rows:
         return "0 points ()"
-    from ..columns import to_numpy
+    from ..engine.columns import to_numpy
 
     first = to_numpy(rows["period"]) == 0
     statuses = collections.Counter(s for s, f in zip(rows["status"].to_pylist(), first) if f)
@@ -206,7 +206,7 @@ def sweep_any(ctx, parameter, **kw):
 
 def read_sweep_metadata(path: Path, option: str = "RESULTS") -> dict[str, Any]:
     """The metadata of a sweep result file; any other file is refused, naming what it is."""
-    from ..results import read_metadata
+    from ..engine.results import read_metadata
 
     check_input(path, "results file")
     try:
@@ -229,7 +229,7 @@ def read_sweep_metadata(path: Path, option: str = "RESULTS") -> dict[str, Any]:
 
 
 def _list_builtin() -> None:
-    from ..sweepfile import builtin_sweeps, load_sweep
+    from ..studies.sweepfile import builtin_sweeps, load_sweep
 
     for name, path in builtin_sweeps().items():
         click.echo(f"{name:10} {load_sweep(path).description}")
@@ -272,7 +272,7 @@ def run_definition(
     Examples: pendsweep run fig11a; pendsweep run my-sweep.toml;
     pendsweep run results/fig11a.parquet -o copy.parquet
     """
-    from ..sweepfile import load_sweep
+    from ..studies.sweepfile import load_sweep
 
     if list_builtin:
         _list_builtin()
@@ -280,7 +280,7 @@ def run_definition(
     if definition is None:
         raise ConfigError("give a sweep: a built-in name (pendsweep run --list), a .toml file or a results .parquet")
     if definition.suffix == ".parquet":
-        from ..sweep import SweepConfig
+        from ..studies.sweep import SweepConfig
 
         meta = read_sweep_metadata(definition, "DEFINITION")
         if output is None:

@@ -10,8 +10,8 @@ from typing import Any
 import click
 
 from ..errors import ConfigError
-from ..params import ModelParams
-from ..sweepfile import MAX_POINTS, MAX_STARTS, describe_count, grid_size
+from ..model.params import ModelParams
+from ..studies.sweepfile import MAX_POINTS, MAX_STARTS, describe_count, grid_size
 from ._app import ANGLE, FINITE, PATH, PERIODS, RATE, SEED, SMALL_ANGLE, STEP_S, LazyChoice, given
 from ._checks import check_input, key_values, model_sets
 from ._executor import checkpoint_option, executor_options, work_options
@@ -52,7 +52,7 @@ FIXED_OPTIONS = (
 #: ``--device`` of the commands that run independent emulated points in batches.
 DEVICE_OPTION = click.option(
     "--device",
-    type=LazyChoice(".gpu", "DEVICES"),
+    type=LazyChoice(".backends.gpu", "DEVICES"),
     default=None,
     help="Where batched emulated points integrate (fresh/multistart modes, Hopf simulate): cpu (default) or "
     "cuda, one NVIDIA GPU thread per point (pip install 'pendsweep[cuda]'; -B precision=float32 opts into single precision).",
@@ -105,14 +105,14 @@ def sweep_options(default_step: float, unit: str):
             ),
             click.option(
                 "--mode",
-                type=LazyChoice(".sweep", "MODES"),
+                type=LazyChoice(".studies.sweep", "MODES"),
                 default="continue",
                 show_default=True,
                 help="continue: carry the state (kick 0.1 rad when at rest); fresh: same start every point; multistart: --starts seeded starts per point.",
             ),
             click.option(
                 "--direction",
-                type=LazyChoice(".sweep", "DIRECTIONS"),
+                type=LazyChoice(".studies.sweep", "DIRECTIONS"),
                 default="up",
                 show_default=True,
                 help="Traversal of continue branches; both exposes hysteresis (continue mode only).",
@@ -148,7 +148,7 @@ def sweep_options(default_step: float, unit: str):
             ),
             click.option(
                 "--transient",
-                type=LazyChoice(".sweep", "TRANSIENTS"),
+                type=LazyChoice(".studies.sweep", "TRANSIENTS"),
                 default="fixed",
                 show_default=True,
                 help="fixed: discard --transient-periods (the paper); auto: integrate each point until its section "
@@ -216,7 +216,7 @@ def sweep_options(default_step: float, unit: str):
             ),
             click.option(
                 "--evidence",
-                type=LazyChoice(".classify", "EVIDENCE_MODES"),
+                type=LazyChoice(".analysis.classify", "EVIDENCE_MODES"),
                 default="staged",
                 show_default=True,
                 help="What the motion classifier simulates past an undecided record: staged (an extension that "
@@ -288,7 +288,7 @@ def refuse_inapplicable(ctx: click.Context, kw: dict[str, Any]) -> None:
 
 def build_config(parameter: str, default_step: float, kw: dict[str, Any], ctx: click.Context | None = None):
     """SweepConfig from the shared sweep options (every check that needs no simulation runs here)."""
-    from ..sweep import SweepConfig, value_range
+    from ..studies.sweep import SweepConfig, value_range
 
     if ctx is not None:
         refuse_inapplicable(ctx, kw)
@@ -332,7 +332,7 @@ def build_config(parameter: str, default_step: float, kw: dict[str, Any], ctx: c
     backend_options: dict[str, Any] = key_values(kw["backend_opts"], "--backend-option")
     if kw["dt"] is not None:
         backend_options["dt"] = kw["dt"]
-    from ..gpu import with_device
+    from ..backends.gpu import with_device
 
     backend_options = with_device(kw["backend"], backend_options, kw["device"] or backend_options.get("device"))
     return SweepConfig(

@@ -26,7 +26,7 @@ def wait_command(url, timeout):
     (-B rig=tcp://...) waits by itself, up to 10 s.
     """
     from ..errors import ConfigError
-    from ..site.connect import connect, parse_rig_url
+    from ..hybrid.connect import connect, parse_rig_url
 
     try:
         host, port = parse_rig_url(url)

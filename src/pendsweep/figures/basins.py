@@ -17,10 +17,10 @@ from matplotlib import patheffects
 from matplotlib.colors import ListedColormap
 from matplotlib.patches import Patch
 
-from ..basins import BasinConfig, run_basins, scan_summary, survival
-from ..maps import MapConfig, hopf_boundaries, run_map
-from ..params import PARAM_SPECS
-from ..plotting import legend_below, new_figure
+from ..canvas import legend_below, new_figure
+from ..model.params import PARAM_SPECS
+from ..studies.basins import BasinConfig, run_basins, scan_summary, survival
+from ..studies.maps import MapConfig, hopf_boundaries, run_map
 from .registry import figure
 
 #: Colour per motion class; periodic orbits by period.

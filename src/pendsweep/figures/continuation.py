@@ -8,15 +8,16 @@ from pathlib import Path
 
 from matplotlib.axes import Axes
 
+from ..analysis.continuation.run import ContinuationConfig, run_continuation, write_json
 from ..backends import make_backend
-from ..continuation.overlay import draw_continuation, wrapped_title
-from ..continuation.run import ContinuationConfig, run_continuation, write_json
-from ..hopf import hopf_simulate
-from ..params import ModelParams
-from ..plotting import draw_bifurcation, legend_right, new_figure
-from ..results import read_results
-from ..sweep import run_sweep
-from ..sweepfile import SWEEPS_DIR, load_sweep
+from ..canvas import legend_right, new_figure
+from ..engine.results import read_results
+from ..model.params import ModelParams
+from ..studies.hopf import hopf_simulate
+from ..studies.sweep import run_sweep
+from ..studies.sweepfile import SWEEPS_DIR, load_sweep
+from .overlay import draw_continuation, wrapped_title
+from .plotting import draw_bifurcation
 from .registry import figure
 
 #: Per panel (named by its sweep file): ``(parameter value, start angle [rad], period)`` of each

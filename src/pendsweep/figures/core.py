@@ -6,12 +6,13 @@ from pathlib import Path
 
 import numpy as np
 
-from ..analytic import quenching_amplitudes
 from ..backends import make_backend
-from ..params import FIG8, FIG9_CO, FIG9_PO
-from ..plotting import new_figure, plot_files
-from ..sweep import run_sweep
-from ..sweepfile import SWEEPS_DIR, load_sweep
+from ..canvas import new_figure
+from ..model.analytic import quenching_amplitudes
+from ..model.params import FIG8, FIG9_CO, FIG9_PO
+from ..studies.sweep import run_sweep
+from ..studies.sweepfile import SWEEPS_DIR, load_sweep
+from .plotting import plot_files
 from .registry import figure
 
 

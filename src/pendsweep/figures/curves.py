@@ -15,11 +15,11 @@ import numpy as np
 import pandas as pd
 from matplotlib.patches import Patch
 
-from ..continuation.run import parameter_unit
+from ..analysis.continuation.run import parameter_unit
+from ..canvas import legend_below, new_figure
+from ..engine.results import read_results
 from ..errors import ConfigError, RunFailure
-from ..maps import MapConfig, hopf_boundaries
-from ..plotting import legend_below, new_figure
-from ..results import read_results
+from ..studies.maps import MapConfig, hopf_boundaries
 from .basins import _OUTLINED, _colour, draw_map_classes
 from .registry import figure
 
@@ -50,7 +50,7 @@ def _label(parameter: str, unit: str) -> str:
 
 def check_overlays(plane: tuple[str, str], overlays: list[Path]) -> None:
     """Refuse, before a curve is computed, overlays that are not curve or map results in the plane ``plane``."""
-    from ..results import read_metadata
+    from ..engine.results import read_metadata
 
     for path in overlays:
         meta = read_metadata(path)
@@ -199,7 +199,7 @@ def plot_tolerance(path: Path, output: Path) -> Path:
 # -- registered figures (make figures) ------------------------------------------------------
 def _pd_continuation(outdir: Path) -> Path:
     """The emulated semi-trivial branch at fe = 2.5 Hz (b1 = b3 = 0) with its period doubling, as a file."""
-    from ..continuation.run import ContinuationConfig, run_continuation, write_json
+    from ..analysis.continuation.run import ContinuationConfig, run_continuation, write_json
 
     path = outdir / "curve-start.json"
     config = ContinuationConfig("alpha", 10.0, 25.0, {"fe": 2.5, "b1": 0.0, "b3": 0.0}, max_period=1)
@@ -210,10 +210,10 @@ def _pd_continuation(outdir: Path) -> Path:
 @figure("curve_pd_map")
 def curve_pd_map(outdir: Path, quick: bool) -> list[Path]:
     """The semi-trivial solution's period-doubling curve in (alpha, fe) over a map of the same plane (Fig. 10's range)."""
-    from ..continuation.curve_run import config_from_file, run_curve
-    from ..hopf import fe_for_omega_hat
-    from ..maps import MapConfig, run_map
-    from ..params import TABLE_IV
+    from ..analysis.continuation.curve_run import config_from_file, run_curve
+    from ..model.params import TABLE_IV
+    from ..studies.hopf import fe_for_omega_hat
+    from ..studies.maps import MapConfig, run_map
 
     smooth = {"b1": 0.0, "b3": 0.0}
     fe_range = tuple(fe_for_omega_hat(TABLE_IV.replace(**smooth), w) for w in (0.88, 1.12))
@@ -233,7 +233,7 @@ def curve_pd_map(outdir: Path, quick: bool) -> list[Path]:
 @figure("tolerance_pd")
 def tolerance_pd(outdir: Path, quick: bool) -> list[Path]:
     """The hybrid loop's period doubling against the rig's delay, per prediction order (the delay-tolerance figure)."""
-    from ..continuation.tolerance import ToleranceConfig, run_tolerance
+    from ..analysis.continuation.tolerance import ToleranceConfig, run_tolerance
 
     config = ToleranceConfig.from_file(
         _pd_continuation(outdir), 0, delays=(0.0, 0.03), orders=(1, 2) if quick else (-1, 0, 1, 2, 3),

@@ -6,10 +6,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..hopf import HopfConfig, run_hopf
-from ..params import FIG9_CO, FIG9_PO, FIG11A
-from ..plotting import draw_bifurcation, new_figure
-from ..sweep import SweepConfig, run_sweep, sweep_metadata, value_range
+from ..canvas import new_figure
+from ..model.params import FIG9_CO, FIG9_PO, FIG11A
+from ..studies.hopf import HopfConfig, run_hopf
+from ..studies.sweep import SweepConfig, run_sweep, sweep_metadata, value_range
+from .plotting import draw_bifurcation
 from .registry import figure
 
 #: Masses of Fig. 10(b) [kg].

@@ -18,12 +18,13 @@ import pandas as pd
 from matplotlib.ticker import MaxNLocator
 
 from ..backends import make_backend
-from ..hybrid import run_trace
-from ..params import FIG9_CO, FIG9_PO, ModelParams
-from ..plotting import draw_bifurcation, new_figure
-from ..sweep import run_sweep, sweep_metadata
-from ..sweepfile import SWEEPS_DIR, load_sweep
-from ..sync import DYNAMICS_BAND, TABLE_I, SyncReport, error_psd, sync_ratio
+from ..canvas import new_figure
+from ..hybrid.sync import DYNAMICS_BAND, TABLE_I, SyncReport, error_psd, sync_ratio
+from ..hybrid.trace import run_trace
+from ..model.params import FIG9_CO, FIG9_PO, ModelParams
+from ..studies.sweep import run_sweep, sweep_metadata
+from ..studies.sweepfile import SWEEPS_DIR, load_sweep
+from .plotting import draw_bifurcation
 from .registry import figure
 
 INITIAL = (0.0, 0.0, 0.1, 0.0)

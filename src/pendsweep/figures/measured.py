@@ -14,9 +14,9 @@ def free_swing_damping(outdir: Path, quick: bool) -> list[Path]:
     Writes nothing when ``shared/data/measured/free-swing-rotary-pendulum`` is absent.
     ``quick`` fits and plots the fitted record only.
     """
-    from ..data import find_free_swing_data, read_free_swing
-    from ..diagnose.damping import fit_damping, predict
-    from ..diagnose.report import plot_envelopes
+    from ..measured.diagnose.damping import fit_damping, predict
+    from ..measured.diagnose.report import plot_envelopes
+    from ..measured.records import find_free_swing_data, read_free_swing
 
     folder = find_free_swing_data()
     if folder is None:

@@ -7,19 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..params import (
-    FIG5_LOOP,
-    FIG6_OMEGA_N,
-    FIG6_ZETA,
-    TABLE_II_FREQ_EXPERIMENT_PAPER,
-    TABLE_II_FREQ_THEORY_PAPER,
-    TABLE_II_LOOPS,
-    TABLE_II_MODELS,
-    TABLE_II_P,
-    LoopParams,
-)
-from ..plotting import new_figure
-from ..stability import (
+from ..analysis.stability import (
     SampledLoop,
     delay_margin,
     loop_response,
@@ -29,6 +17,18 @@ from ..stability import (
     simulated_delay_margin,
     simulated_growth,
     stability_chart,
+)
+from ..canvas import new_figure
+from ..model.params import (
+    FIG5_LOOP,
+    FIG6_OMEGA_N,
+    FIG6_ZETA,
+    TABLE_II_FREQ_EXPERIMENT_PAPER,
+    TABLE_II_FREQ_THEORY_PAPER,
+    TABLE_II_LOOPS,
+    TABLE_II_MODELS,
+    TABLE_II_P,
+    LoopParams,
 )
 from .registry import figure
 

@@ -11,7 +11,6 @@ Set ``NUMBA_DISABLE_JIT=1`` to run them as plain Python (for coverage or
 debugging); results are identical, only slower.
 """
 
-from .._vector_width import WIDE_VECTORS  # first: numba reads its CPU tuning once, before any kernel
 from ._emulated import emulated_periods, emulated_trace, eq11_params, eq11_step, forcing_table
 from ._layout import (
     N_RECORD_COLUMNS,
@@ -24,6 +23,7 @@ from ._measured import driven_trace, pendulum_trace, substructured_replay
 from ._notice import announce_compilation
 from ._records import wrap_angle
 from ._rhs import PHYSICS, compile_physics
+from ._vector_width import WIDE_VECTORS  # first: numba reads its CPU tuning once, before any kernel
 
 __all__ = [
     "N_RECORD_COLUMNS",

@@ -5,7 +5,7 @@ time in libm ``sin``/``cos``, which LLVM cannot vectorise. Here the state of
 a chunk of points (lanes) lives in structure-of-arrays form and the
 innermost loop runs over lanes, so that LLVM turns one RK4 step of the whole
 chunk into packed AVX2 or AVX-512 code, two vector iterations interleaved
-(:mod:`pendsweep._vector_width`), no scalar double arithmetic in the loop for
+(:mod:`pendsweep.kernels._vector_width`), no scalar double arithmetic in the loop for
 either (``make bench`` and the tests inspect both builds); ``sin``/``cos`` come from the branch-free
 :func:`~pendsweep.kernels._sincos.sincos_poly`, once per step, rotated to
 the later stages by :func:`~pendsweep.kernels._sincos.rotate_sincos`. The forcing at the stage
@@ -19,7 +19,7 @@ finished or diverged is frozen by a select. Period ends are rare events
 handled by a scalar pass that fills the same records as the scalar kernel.
 
 Twin lanes: a lane with a ``partner`` follows it at a small distance for the
-two-trajectory Lyapunov estimate of :mod:`pendsweep.classify`. At every
+two-trajectory Lyapunov estimate of :mod:`pendsweep.analysis.classify`. At every
 period end the twin's separation from its partner (normalised section
 coordinates) gives one log-stretch sample, and the twin is pulled back to
 distance ``d0`` along the separation (Benettin), all inside the kernel.
@@ -84,7 +84,7 @@ class Lanes(NamedTuple):
         lie in the same chunk at a smaller index and share ``steps``.
     scales : float64[4, n]
         Divisors making a twin's section separation dimensionless
-        (``pendsweep.sections.section_scales``).
+        (``pendsweep.analysis.sections.section_scales``).
     d0 : float
         Twin separation after each renormalisation [normalised].
     rest : float

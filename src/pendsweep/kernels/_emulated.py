@@ -1,7 +1,7 @@
 """Fixed-step RK4 of the emulated (complete) system, Eq. (11).
 
 State ``z = (y, ydot, theta, thetadot)``; parameters are the float64 vector of
-:meth:`pendsweep.params.ModelParams.kernel_array`. The step is chosen so that
+:meth:`pendsweep.model.params.ModelParams.kernel_array`. The step is chosen so that
 a forcing period holds an integer number of steps, which makes the
 stroboscopic (Poincare) section exact; the forcing values at the RK4 stage
 times are then periodic and come from a precomputed half-step table.

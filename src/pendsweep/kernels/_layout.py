@@ -1,10 +1,10 @@
 """Status codes and per-period record layout shared by every kernel.
 
-Kernels return integer status codes only; :mod:`pendsweep.status` turns them
+Kernels return integer status codes only; :mod:`pendsweep.backends.status` turns them
 into names and messages. A record row holds one forcing period.
 """
 
-from ..params import KERNEL_FIELDS
+from ..model.params import KERNEL_FIELDS
 
 # Status codes returned by kernels.
 STATUS_OK = 0

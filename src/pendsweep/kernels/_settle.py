@@ -108,7 +108,7 @@ def settle_check(records, scales, tol, window, max_period, rest_threshold, rotat
     """Settling of every run of ``records`` (k, periods, 8) with section divisors ``scales`` (k, 4).
 
     Fills ``out`` (int64[k, 6]) with ``settled, period, turns, onset,
-    at_rest, ambiguous`` per run, as :func:`pendsweep.attractors.settling`
+    at_rest, ambiguous`` per run, as :func:`pendsweep.analysis.attractors.settling`
     documents them. Records shorter than ``window`` periods are not settled.
     """
     k, periods = records.shape[0], records.shape[1]

@@ -1,7 +1,7 @@
 """The rig's half of a substructured tick, for an experimental site that a controller drives over a socket.
 
 The in-process loop (:mod:`._substructured`) runs controller and rig in one
-kernel; a site (:mod:`pendsweep.site`) receives the controller's command
+kernel; a site (:mod:`pendsweep.hybrid`) receives the controller's command
 instead and runs only the rig's steps, with the same functions: the command
 enters the delay line, :func:`~._substructured.rig_advance` moves the rig over
 one step, :func:`~._substructured.sense` reads its sensors.

@@ -149,7 +149,7 @@ class LoopSettings(NamedTuple):
         0: the signum of theta' in the pendulum damping is held over each rig
         substep (non-smooth, as a rig's friction is); ``> 0``: ``tanh(theta' /
         sign_eps)`` [rad/s] at each substep's start, a smooth tick map for
-        continuation (:mod:`pendsweep.continuation.loop`).
+        continuation (:mod:`pendsweep.analysis.continuation.loop`).
     """
 
     M2: float
@@ -405,7 +405,7 @@ def controller_tick(s, hist, jstep, k, tick, dt, we, table, model, pend, ms, cfg
 
     The rig's part (:func:`sense`, :func:`rig_advance`) and the controller's
     (:func:`command_tick`) are separate functions because an experimental
-    site (:mod:`pendsweep.site`) runs the rig's part on the far side of a socket.
+    site (:mod:`pendsweep.hybrid`) runs the rig's part on the far side of a socket.
     """
     readings = sense(s, ms, cfg, pend[0], pend[1], dt, noise_f[tick], noise_x[tick], we * (jstep * dt))
     command_tick(s, hist, jstep, k, dt, table, model, cfg, readings, row, tr)

@@ -1,0 +1,98 @@
+"""Module paths of pendsweep 0.1 that moved in the regrouping into layer packages: kept for one release.
+
+``import pendsweep.sweep`` (or ``from pendsweep.site.client import ...``)
+still works and gives the module at its new path, the very same module
+object, with a :class:`DeprecationWarning` naming the new path. The old
+paths go in pendsweep 0.3; CHANGELOG.md lists them and the modules that
+were removed instead.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.abc
+import importlib.util
+import sys
+import warnings
+from types import ModuleType
+
+#: Old path -> new path; an old package's submodules follow it (``pendsweep.site.rig`` -> ``pendsweep.hybrid.rig``).
+MOVED = {
+    "pendsweep.params": "pendsweep.model.params",
+    "pendsweep.analytic": "pendsweep.model.analytic",
+    "pendsweep.loop": "pendsweep.model.loop",
+    "pendsweep._vector_width": "pendsweep.kernels._vector_width",
+    "pendsweep.gpu": "pendsweep.backends.gpu",
+    "pendsweep.status": "pendsweep.backends.status",
+    "pendsweep.scan": "pendsweep.engine.scan",
+    "pendsweep.executors": "pendsweep.engine.executors",
+    "pendsweep.results": "pendsweep.engine.results",
+    "pendsweep.merge": "pendsweep.engine.merge",
+    "pendsweep.columns": "pendsweep.engine.columns",
+    "pendsweep.output_lock": "pendsweep.engine.output_lock",
+    "pendsweep.classify": "pendsweep.analysis.classify",
+    "pendsweep.sections": "pendsweep.analysis.sections",
+    "pendsweep.attractors": "pendsweep.analysis.attractors",
+    "pendsweep.semi_trivial": "pendsweep.analysis.semi_trivial",
+    "pendsweep.hopf_protocol": "pendsweep.analysis.hopf_protocol",
+    "pendsweep.stability": "pendsweep.analysis.stability",
+    "pendsweep.continuation.overlay": "pendsweep.figures.overlay",
+    "pendsweep.continuation": "pendsweep.analysis.continuation",
+    "pendsweep.site.continuous": "pendsweep.studies.rig_sweep",
+    "pendsweep.site": "pendsweep.hybrid",
+    "pendsweep.sync": "pendsweep.hybrid.sync",
+    "pendsweep.sweep": "pendsweep.studies.sweep",
+    "pendsweep.sweep_rows": "pendsweep.studies.sweep_rows",
+    "pendsweep.sweepfile": "pendsweep.studies.sweepfile",
+    "pendsweep.maps": "pendsweep.studies.maps",
+    "pendsweep.hopf": "pendsweep.studies.hopf",
+    "pendsweep.basins": "pendsweep.studies.basins",
+    "pendsweep.data": "pendsweep.measured.records",
+    "pendsweep.logs": "pendsweep.measured.logs",
+    "pendsweep.plotting": "pendsweep.figures.plotting",
+}
+#: Old diagnosis modules that are no pipeline stage any more (CHANGELOG.md): refused, not aliased.
+REMOVED = {
+    "pendsweep.diagnose.fit", "pendsweep.diagnose.fitting", "pendsweep.diagnose.judging",
+    "pendsweep.diagnose.thresholds", "pendsweep.diagnose.parts_report",
+}  # fmt: skip
+
+
+def new_path(name: str) -> str | None:
+    """Where the 0.1 module ``name`` lives now, or None if it did not move."""
+    if name in MOVED:
+        return MOVED[name]
+    old = max((k for k in MOVED if name.startswith(k + ".")), key=len, default=None)
+    return None if old is None else MOVED[old] + name[len(old) :]
+
+
+class _Alias(importlib.abc.Loader):
+    def __init__(self, new: str) -> None:
+        self.new = new
+
+    def create_module(self, spec) -> ModuleType:
+        warnings.warn(f"{spec.name} moved to {self.new}; the old path goes in pendsweep 0.3", DeprecationWarning, 2)
+        module = importlib.import_module(self.new)
+        self.own_spec = module.__spec__
+        return module
+
+    def exec_module(self, module: ModuleType) -> None:
+        module.__spec__ = self.own_spec  # the import system gave it the alias's spec: it keeps its own
+
+
+class _MovedFinder(importlib.abc.MetaPathFinder):
+    def find_spec(self, name, path=None, target=None):
+        if not name.startswith("pendsweep."):
+            return None
+        new = new_path(name)
+        if new is None and (name.startswith("pendsweep.diagnose.") or name == "pendsweep.diagnose"):
+            new = "pendsweep.measured.diagnose" + name[len("pendsweep.diagnose") :]
+            if name in REMOVED:
+                return None  # a plain ModuleNotFoundError: CHANGELOG.md says what replaced it
+        return None if new is None else importlib.util.spec_from_loader(name, _Alias(new))
+
+
+def install() -> None:
+    """Put the finder first on :data:`sys.meta_path` (once)."""
+    if not any(isinstance(f, _MovedFinder) for f in sys.meta_path):
+        sys.meta_path.insert(0, _MovedFinder())
