@@ -5,7 +5,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: setup run test lint format figures bench wheel-check clean
+.PHONY: setup run test lint format figures architecture bench wheel-check clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -33,6 +33,9 @@ format: $(STAMP)  ## apply ruff's fixes and formatting
 
 figures: $(STAMP)  ## regenerate every figure into results/figures/
 	$(BIN)/pendsweep figures -o results/figures
+
+architecture: $(STAMP)  ## the layers and the imports between them, read from the code -> docs/img/layers.png
+	$(BIN)/python scripts/layers_figure.py docs/img/layers.png
 
 bench: $(STAMP)  ## benchmarks -> results/bench.json
 	$(BIN)/python -m pendsweep.bench -o results/bench.json

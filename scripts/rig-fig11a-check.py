@@ -91,8 +91,9 @@ def compare(out: Path, nudges: int) -> None:
     """comparison.csv, the agreement lines and fig11a_rig.png (the three diagrams one above the other)."""
     import pandas as pd
 
+    from pendsweep.canvas import new_figure
     from pendsweep.engine.results import read_results
-    from pendsweep.figures.plotting import draw_bifurcation, new_figure
+    from pendsweep.figures.plotting import draw_bifurcation
 
     names = {"rig": "through the site, one session", "local": "in process", "emulated": "emulated system"}
     per_point = {}

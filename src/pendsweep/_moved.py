@@ -88,7 +88,7 @@ class _MovedFinder(importlib.abc.MetaPathFinder):
         if new is None and (name.startswith("pendsweep.diagnose.") or name == "pendsweep.diagnose"):
             new = "pendsweep.measured.diagnose" + name[len("pendsweep.diagnose") :]
             if name in REMOVED:
-                return None  # a plain ModuleNotFoundError: CHANGELOG.md says what replaced it
+                raise ModuleNotFoundError(f"{name} was removed in pendsweep 0.2: CHANGELOG.md names its successor", name=name)
         return None if new is None else importlib.util.spec_from_loader(name, _Alias(new))
 
 

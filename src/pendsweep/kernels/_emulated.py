@@ -14,18 +14,13 @@ import numpy as np
 
 from ._layout import (
     N_RECORD_COLUMNS,
-    P_B1,
-    P_B2,
-    P_B3,
     P_C,
-    P_G,
     P_K,
     P_K3,
-    P_L,
     P_M,
-    P_M_PEND,
     STATUS_DIVERGED,
     STATUS_OK,
+    pendulum_params,
 )
 from ._records import TWO_PI, record_close, record_open, record_sample, wrap_index
 from ._rhs import signum
@@ -40,12 +35,8 @@ def eq11_params(p, sgn_per_stage, vector):
     once per step; ``vector`` (a constant at every call site) selects the
     vectorisable formulation (see :func:`eq11_rhs`).
     """
-    l = p[P_L]
-    m = p[P_M_PEND]
-    return (
-        m, l, p[P_B1], p[P_B2], p[P_B3], p[P_G], p[P_M], p[P_C], p[P_K], p[P_K3],
-        sgn_per_stage, vector, 1.0 / l, 1.0 / m,
-    )  # fmt: skip
+    m, l, b1, b2, b3, g = pendulum_params(p)
+    return (m, l, b1, b2, b3, g, p[P_M], p[P_C], p[P_K], p[P_K3], sgn_per_stage, vector, 1.0 / l, 1.0 / m)
 
 
 @nb.njit(cache=True, nogil=True, inline="always")

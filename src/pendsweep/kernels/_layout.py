@@ -4,6 +4,8 @@ Kernels return integer status codes only; :mod:`pendsweep.backends.status` turns
 into names and messages. A record row holds one forcing period.
 """
 
+import numba as nb
+
 from ..model.params import KERNEL_FIELDS
 
 # Status codes returned by kernels.
@@ -43,3 +45,15 @@ P_M_PEND, P_L, P_B1, P_B2, P_B3, P_G, P_M, P_C, P_K, P_K3 = (
     KERNEL_FIELDS.index(name) for name in ("m", "l", "b1", "b2", "b3", "g", "M", "C", "K", "k3")
 )
 N_PARAMS = len(KERNEL_FIELDS)
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def pendulum_params(p):
+    """The pendulum's ``(m, l, b1, b2, b3, g)`` from kernel parameter vector ``p`` (every pendulum equation's tuple)."""
+    return p[P_M_PEND], p[P_L], p[P_B1], p[P_B2], p[P_B3], p[P_G]
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def model_params(p, M2, C2):
+    """The numerical model's ``(M1, C1, K, k3)``: the oscillator less the rig's platform ``(M2 [kg], C2 [kg/s])``."""
+    return p[P_M] - M2, p[P_C] - C2, p[P_K], p[P_K3]

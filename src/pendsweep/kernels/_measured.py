@@ -18,16 +18,10 @@ import numpy as np
 
 from ._actuator import hermite
 from ._emulated import eq11_params, eq11_step
-from ._layout import P_B1, P_B2, P_B3, P_G, P_K, P_K3, P_L, P_M_PEND, STATUS_DIVERGED, STATUS_OK
+from ._layout import P_K, P_K3, STATUS_DIVERGED, STATUS_OK, pendulum_params
 from ._rhs import pendulum_acc, servo_acc, signum
 from ._steps import model_rk4, pivot_pendulum_rk4
 from ._substructured import interface_momentum
-
-
-@nb.njit(cache=True, nogil=True, inline="always")
-def _pendulum_params(p):
-    """``m, l, b1, b2, b3, g`` from the kernel parameter vector."""
-    return p[P_M_PEND], p[P_L], p[P_B1], p[P_B2], p[P_B3], p[P_G]
 
 
 @nb.njit(cache=True, nogil=True)
@@ -53,7 +47,7 @@ def pendulum_trace(state, p, dt, substeps, out):
     int
         ``STATUS_OK`` or ``STATUS_DIVERGED``.
     """
-    m, l, b1, b2, b3, g = _pendulum_params(p)
+    m, l, b1, b2, b3, g = pendulum_params(p)
     h = dt / substeps
     th, thd = state[0], state[1]
     out[0, 0], out[0, 1] = th, thd
@@ -187,7 +181,7 @@ def substructured_replay(
     int
         ``STATUS_OK`` or ``STATUS_DIVERGED``.
     """
-    m, l, b1, b2, b3, g = _pendulum_params(p)
+    m, l, b1, b2, b3, g = pendulum_params(p)
     model = (M1, C1, p[P_K], p[P_K3])
     ms = M2 + m
     h = dt / substeps
@@ -464,7 +458,7 @@ def platform_trace(state, p, M2, C2, gain_fs, motion, per_sample, dt, substeps, 
     int
         ``STATUS_OK`` or ``STATUS_DIVERGED``.
     """
-    m, l, b1, b2, b3, g = _pendulum_params(p)
+    m, l, b1, b2, b3, g = pendulum_params(p)
     ms = M2 + m
     h = dt / substeps
     th, thd = state[0], state[1]

@@ -10,7 +10,7 @@ one step, :func:`~._substructured.sense` reads its sensors.
 import numba as nb
 
 from ._actuator import push
-from ._layout import P_C, P_K, P_K3, P_L, P_M, P_M_PEND
+from ._layout import model_params, pendulum_params
 from ._substructured import (
     S_THETA,
     S_THETADOT,
@@ -42,7 +42,7 @@ def rig_reading(s, p, cfg, dt, noise_f, noise_x, phase, out):
 
     ``p`` is ``ModelParams.kernel_array()``; ``out`` receives :data:`READING_NAMES`.
     """
-    m, l = p[P_M_PEND], p[P_L]
+    m, l = pendulum_params(p)[:2]
     _store(out, sense(s, m + cfg.M2, cfg, m, l, dt, noise_f, noise_x, phase), s, 0.0)
 
 
@@ -81,7 +81,7 @@ def client_tick(s, p, cfg, table, jstep, k, readings, row, tr):
     """
     o_cmd, o_cmdd, o_yh, o_fh, o_z, end = state_offsets(cfg.n_cmd, cfg.w_pred.shape[0], cfg.sos.shape[0])
     hist = (s[o_cmd:o_cmdd], s[o_cmdd:o_yh], s[o_yh:o_fh], s[o_fh:o_z], s[o_z:end])
-    model = (p[P_M] - cfg.M2, p[P_C] - cfg.C2, p[P_K], p[P_K3])
+    model = model_params(p, cfg.M2, cfg.C2)
     dt = 1.0 / (cfg.fe * cfg.steps_per_period)
     command_tick(
         s, hist, jstep, k, dt, table, model, cfg, (readings[0], readings[1], readings[2], readings[3]), row, tr

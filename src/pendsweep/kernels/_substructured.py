@@ -57,19 +57,11 @@ from ._actuator import ACT_SERVO, delayed_segment, hermite_at, push, weighted_su
 from ._emulated import forcing_table
 from ._layout import (
     N_RECORD_COLUMNS,
-    P_B1,
-    P_B2,
-    P_B3,
-    P_C,
-    P_G,
-    P_K,
-    P_K3,
-    P_L,
-    P_M,
-    P_M_PEND,
     STATUS_DIVERGED,
     STATUS_OK,
     STATUS_UNSTABLE,
+    model_params,
+    pendulum_params,
 )
 from ._records import TWO_PI, record_close, record_open, record_sample, wrap_index
 from ._rhs import signum
@@ -480,8 +472,8 @@ def substructured_loop(state, p, cfg, noise_f, noise_x, transient_periods, recor
     periods_done : int
         Periods completed before the run stopped.
     """
-    pend = (p[P_M_PEND], p[P_L], p[P_B1], p[P_B2], p[P_B3], p[P_G])
-    model = (p[P_M] - cfg.M2, p[P_C] - cfg.C2, p[P_K], p[P_K3])
+    pend = pendulum_params(p)
+    model = model_params(p, cfg.M2, cfg.C2)
     n = cfg.steps_per_period
     dt = 1.0 / (cfg.fe * n)
     we = TWO_PI * cfg.fe

@@ -28,6 +28,7 @@ from ..backends.status import Status
 from ..errors import ConfigError
 from ..model.params import PARAM_SPECS, ModelParams, check_value
 from .basins import CHUNK_STARTS, ROUND_PERIODS, EmulatedMap, settle_runs
+from .basins.run import SettleScan, chunk_ranges
 
 ROW_COLUMNS = ["ix", "iy"]
 #: Values of the non-alpha axis at which the Hopf boundary is computed (at most).
@@ -168,54 +169,36 @@ def _map_task(config: MapConfig, cells: np.ndarray) -> list:
 
 
 @dataclass
-class MapScan:
-    """A two-parameter map as a :class:`pendsweep.engine.scan.Scan`: one unit per chunk of grid cells."""
+class MapScan(SettleScan):
+    """A two-parameter map as a scan: one unit per chunk of grid cells."""
 
     config: MapConfig
     chunk_cells: int = CHUNK_STARTS
     desc: str = "map"
     row_columns: list[str] = field(default_factory=lambda: list(ROW_COLUMNS))
-    resume_columns: list[str] = field(default_factory=list)  # a resume needs only the finished keys
 
     def metadata(self) -> dict[str, Any]:
         from ..engine.results import run_metadata
 
         return run_metadata("map", self.config.to_dict(), backend="emulated")
 
-    def _chunks(self) -> list[np.ndarray]:
-        n = self.config.cells
+    def chunks(self) -> list[tuple[str, np.ndarray]]:
         # A GPU needs ~1e5 threads to be busy: its units hold at least the backend's minimum batch.
         size = max(self.chunk_cells, EmulatedBackend(device=self.config.device).min_batch_points)
-        return [np.arange(first, min(first + size, n)) for first in range(0, n, size)]
+        return [(f"cells:{int(cells[0])}", cells) for cells in chunk_ranges(self.config.cells, size)]
 
-    def n_units(self) -> int:
-        return len(self._chunks())
+    def unit_task(self, payload: np.ndarray, n_jobs: int):
+        return functools.partial(_map_task, self.config, payload)
 
-    def work(self):
-        """Upper bound: every cell integrated to the cap; results of about ``RESULT_ROW_BYTES`` per cell."""
+    def starts(self) -> int:
+        return self.config.cells
+
+    def steps_per_period(self) -> float:
         from ..backends import steps_per_period
-        from ..engine.scan import RESULT_ROW_BYTES, Work
 
-        fe = [
-            self.config.params_at(x, y).fe
-            for x in (self.config.x_values[0], self.config.x_values[-1])
-            for y in (self.config.y_values[0], self.config.y_values[-1])
-        ]
-        steps = float(np.mean([steps_per_period(f, self.config.dt) for f in fe]))
-        return Work(
-            self.config.cells, self.config.max_periods, steps, result_bytes=self.config.cells * RESULT_ROW_BYTES
-        )
-
-    def tasks(self, finished, n_jobs: int):
-        from ..engine.scan import check_unit_keys
-
-        chunks = self._chunks()
-        check_unit_keys(finished, {f"cells:{int(c[0])}" for c in chunks})
-        todo = [c for c in chunks if f"cells:{int(c[0])}" not in finished.keys]
-        return [functools.partial(_map_task, self.config, c) for c in todo], 1
-
-    def order(self, df: pd.DataFrame) -> pd.DataFrame:
-        return df.sort_values(self.row_columns, kind="stable").reset_index(drop=True)
+        corners = [(x, y) for x in (self.config.x_values[0], self.config.x_values[-1])
+                   for y in (self.config.y_values[0], self.config.y_values[-1])]  # fmt: skip
+        return float(np.mean([steps_per_period(self.config.params_at(x, y).fe, self.config.dt) for x, y in corners]))
 
 
 def run_map(

@@ -248,59 +248,99 @@ def unit_key(point: int, first_start: int) -> str:
     return f"{int(point)}:{int(first_start)}"
 
 
+def chunk_ranges(n: int, size: int) -> list[np.ndarray]:
+    """``range(n)`` in consecutive chunks of ``size`` indices (the last one shorter)."""
+    return [np.arange(first, min(first + size, n)) for first in range(0, n, size)]
+
+
+class SettleScan:
+    """The scan contract (:class:`pendsweep.engine.scan.Scan`) shared by basins and maps.
+
+    Their units are chunks of independent starts, each run settled in rounds
+    (:func:`settle_runs`) and stored as one row per start; a resume needs
+    only the finished keys. A subclass has ``config`` (with ``max_periods``)
+    and ``row_columns``, and gives
+
+    1. :meth:`chunks`: the units as ``[(key, payload)]``, in order;
+    2. :meth:`unit_task`: the callable that runs one unit's payload;
+    3. :meth:`starts` and :meth:`steps_per_period`: starts in all, and steps per
+       forcing period averaged over the study (for the work estimate).
+    """
+
+    resume_columns: list[str] = []
+
+    def chunks(self) -> list[tuple[str, Any]]:
+        raise NotImplementedError
+
+    def unit_task(self, payload: Any, n_jobs: int):
+        raise NotImplementedError
+
+    def starts(self) -> int:
+        raise NotImplementedError
+
+    def steps_per_period(self) -> float:
+        raise NotImplementedError
+
+    def n_units(self) -> int:
+        return len(self.chunks())
+
+    def work(self):
+        """Upper bound: every start integrated to the cap (early stop typically does 10-30 % of it).
+
+        Its results take about :data:`~pendsweep.engine.scan.RESULT_ROW_BYTES` per start when gathered.
+        """
+        from ...engine.scan import RESULT_ROW_BYTES, Work
+
+        starts = self.starts()
+        return Work(starts, self.config.max_periods, self.steps_per_period(), result_bytes=starts * RESULT_ROW_BYTES)
+
+    def tasks(self, finished, n_jobs: int):
+        from ...engine.scan import check_unit_keys
+
+        chunks = self.chunks()
+        check_unit_keys(finished, {key for key, _ in chunks})
+        # A unit runs the batched kernel on every core (or its starts on n_jobs threads): one unit at a time locally.
+        return [self.unit_task(payload, n_jobs) for key, payload in chunks if key not in finished.keys], 1
+
+    def order(self, df: pd.DataFrame) -> pd.DataFrame:
+        return df.sort_values(self.row_columns, kind="stable").reset_index(drop=True)
+
+
 @dataclass
-class BasinScan:
-    """A basin computation as a :class:`pendsweep.engine.scan.Scan`: one unit per chunk of starts of one point."""
+class BasinScan(SettleScan):
+    """A basin computation as a scan: one unit per chunk of starts of one point."""
 
     config: BasinConfig
     chunk_starts: int = CHUNK_STARTS
     desc: str = "basins"
     row_columns: list[str] = field(default_factory=lambda: list(ROW_COLUMNS))
-    resume_columns: list[str] = field(default_factory=list)  # a resume needs only the finished keys
 
     def metadata(self) -> dict[str, Any]:
         from ...engine.results import run_metadata
 
         return run_metadata("basins", self.config.to_dict(), backend=self.config.backend, seed=self.config.seed)
 
-    def _chunks(self) -> list[tuple[int, np.ndarray]]:
-        n = self.config.starts
+    def chunks(self) -> list[tuple[str, tuple[int, np.ndarray]]]:
         # A GPU needs ~1e5 threads to be busy: its units hold at least the backend's minimum batch.
         size = max(self.chunk_starts, self.config.make_backend().min_batch_points)
         return [
-            (point, np.arange(first, min(first + size, n)))
+            (unit_key(point, int(starts[0])), (point, starts))
             for point in range(len(self.config.values))
-            for first in range(0, n, size)
+            for starts in chunk_ranges(self.config.starts, size)
         ]
 
-    def n_units(self) -> int:
-        return len(self._chunks())
+    def unit_task(self, payload: tuple[int, np.ndarray], n_jobs: int):
+        workers = (os.cpu_count() or 1) if n_jobs < 1 else n_jobs
+        return functools.partial(_basin_task, self.config, *payload, workers)
 
-    def work(self):
-        """Upper bound: every start integrated to the cap (early stop typically does 10-30 % of it).
+    def starts(self) -> int:
+        return len(self.config.values) * self.config.starts
 
-        Its results take about :data:`RESULT_ROW_BYTES` per start when gathered.
-        """
+    def steps_per_period(self) -> float:
         from ...backends import steps_per_period
-        from ...engine.scan import RESULT_ROW_BYTES, Work
 
         dt = self.config.make_backend().options().get("dt", 1e-3)
-        steps = np.mean([steps_per_period(self.config.params_at(v).fe, dt) for v in self.config.values])
-        starts = len(self.config.values) * self.config.starts
-        return Work(starts, self.config.max_periods, float(steps), result_bytes=starts * RESULT_ROW_BYTES)
-
-    def tasks(self, finished, n_jobs: int):
-        from ...engine.scan import check_unit_keys
-
-        workers = (os.cpu_count() or 1) if n_jobs < 1 else n_jobs
-        chunks = self._chunks()
-        check_unit_keys(finished, {unit_key(p, int(st[0])) for p, st in chunks})
-        todo = [(p, st) for p, st in chunks if unit_key(p, int(st[0])) not in finished.keys]
-        # The emulated backend's batched kernel uses every core within a task: tasks run one at a time locally.
-        return [functools.partial(_basin_task, self.config, p, st, workers) for p, st in todo], 1
-
-    def order(self, df: pd.DataFrame) -> pd.DataFrame:
-        return df.sort_values(self.row_columns, kind="stable").reset_index(drop=True)
+        return float(np.mean([steps_per_period(self.config.params_at(v).fe, dt) for v in self.config.values]))
 
 
 def run_basins(
