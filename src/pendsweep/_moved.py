@@ -49,12 +49,14 @@ MOVED = {
     "pendsweep.basins": "pendsweep.studies.basins",
     "pendsweep.data": "pendsweep.measured.records",
     "pendsweep.logs": "pendsweep.measured.logs",
+    "pendsweep.diagnose": "pendsweep.measured.diagnose",
     "pendsweep.plotting": "pendsweep.figures.plotting",
 }
-#: Old diagnosis modules that are no pipeline stage any more (CHANGELOG.md): refused, not aliased.
+#: 0.1 modules that are gone (CHANGELOG.md names what replaced each): refused, not aliased.
 REMOVED = {
     "pendsweep.diagnose.fit", "pendsweep.diagnose.fitting", "pendsweep.diagnose.judging",
-    "pendsweep.diagnose.thresholds", "pendsweep.diagnose.parts_report",
+    "pendsweep.diagnose.thresholds", "pendsweep.diagnose.parts_report", "pendsweep.diagnose.chain",
+    "pendsweep.diagnose.transfer", "pendsweep.diagnose.servo_step", "pendsweep.diagnose.parts",
 }  # fmt: skip
 
 
@@ -82,13 +84,11 @@ class _Alias(importlib.abc.Loader):
 
 class _MovedFinder(importlib.abc.MetaPathFinder):
     def find_spec(self, name, path=None, target=None):
-        if not name.startswith("pendsweep."):
-            return None
-        new = new_path(name)
-        if new is None and (name.startswith("pendsweep.diagnose.") or name == "pendsweep.diagnose"):
-            new = "pendsweep.measured.diagnose" + name[len("pendsweep.diagnose") :]
-            if name in REMOVED:
-                raise ModuleNotFoundError(f"{name} was removed in pendsweep 0.2: CHANGELOG.md names its successor", name=name)
+        if name in REMOVED:
+            raise ModuleNotFoundError(
+                f"{name} was removed in pendsweep 0.2: CHANGELOG.md names its successor", name=name
+            )
+        new = new_path(name) if name.startswith("pendsweep.") else None
         return None if new is None else importlib.util.spec_from_loader(name, _Alias(new))
 
 

@@ -11,6 +11,10 @@ Set ``NUMBA_DISABLE_JIT=1`` to run them as plain Python (for coverage or
 debugging); results are identical, only slower.
 """
 
+# numba reads its CPU tuning once, when it builds its code generator: before any kernel module is imported
+from ._vector_width import WIDE_VECTORS
+
+# isort: split
 from ._emulated import emulated_periods, emulated_trace, eq11_params, eq11_step, forcing_table
 from ._layout import (
     N_RECORD_COLUMNS,
@@ -23,7 +27,6 @@ from ._measured import driven_trace, pendulum_trace, substructured_replay
 from ._notice import announce_compilation
 from ._records import wrap_angle
 from ._rhs import PHYSICS, compile_physics
-from ._vector_width import WIDE_VECTORS  # first: numba reads its CPU tuning once, before any kernel
 
 __all__ = [
     "N_RECORD_COLUMNS",
