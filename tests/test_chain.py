@@ -22,10 +22,11 @@ from pendsweep.cli import main
 from pendsweep.engine.results import METADATA_KEY, read_metadata
 from pendsweep.errors import ConfigError
 from pendsweep.kernels._measured import transfer_trace
-from pendsweep.measured.diagnose.chain import BANDWIDTH_TOLERANCE, diagnose_records, judge_transfer
-from pendsweep.measured.diagnose.servo_step import servo_propagator
+from pendsweep.measured.diagnose.identify.servo_step import servo_propagator
+from pendsweep.measured.diagnose.identify.transfer import Actuator, identify_transfer
+from pendsweep.measured.diagnose.judge import BANDWIDTH_TOLERANCE, judge_transfer
+from pendsweep.measured.diagnose.pipeline import diagnose_records
 from pendsweep.measured.diagnose.testbench import TEST_SEEDS, Case, Rig, generate
-from pendsweep.measured.diagnose.transfer import Actuator, identify_transfer
 from pendsweep.measured.records import Record, read_record, write_record
 from pendsweep.model.params import FIG9_PO
 

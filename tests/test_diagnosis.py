@@ -19,9 +19,9 @@ from click.testing import CliRunner
 
 from pendsweep.cli import main
 from pendsweep.measured.diagnose import EFFECTS, Replay, diagnose
-from pendsweep.measured.diagnose.chain import diagnose_records
-from pendsweep.measured.diagnose.fitting import Fit
-from pendsweep.measured.diagnose.judging import block_test
+from pendsweep.measured.diagnose.fit import Fit
+from pendsweep.measured.diagnose.judge import block_test
+from pendsweep.measured.diagnose.pipeline import diagnose_records
 from pendsweep.measured.diagnose.populations import truth_value
 from pendsweep.measured.diagnose.testbench import CALIBRATION_SEEDS, TEST_SEEDS, Case, generate
 from pendsweep.measured.records import find_free_swing_data, read_record, write_record

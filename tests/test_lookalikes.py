@@ -14,20 +14,18 @@ import numpy as np
 import pytest
 
 from pendsweep.measured.diagnose import Replay, fit_model
-from pendsweep.measured.diagnose.chain import diagnose_records
-from pendsweep.measured.diagnose.fitting import Problem
-from pendsweep.measured.diagnose.identify import (
+from pendsweep.measured.diagnose.fit import WELL_CONDITIONED_VIF, Problem, channel_ratios
+from pendsweep.measured.diagnose.identify.oscillator import (
     SEPARABLE_VIF,
     TONE_SHARE,
-    WELL_CONDITIONED_VIF,
     _forcing_content,
     _peak_shift,
     _spectrum,
     identify_oscillator,
 )
-from pendsweep.measured.diagnose.judging import channel_ratios
-from pendsweep.measured.diagnose.replay import rounding_std
+from pendsweep.measured.diagnose.pipeline import diagnose_records
 from pendsweep.measured.diagnose.servo_rig import Rig
+from pendsweep.measured.diagnose.signals import rounding_std
 from pendsweep.measured.diagnose.testbench import ENCODER_STEP, TEST_SEEDS, Case, generate
 
 SEED = TEST_SEEDS[0] + 3401

@@ -24,7 +24,7 @@ from pendsweep.measured.diagnose import EFFECTS, Replay, diagnose, synthesize  #
 from pendsweep.measured.diagnose.damping import fit_damping  # noqa: E402
 from pendsweep.measured.diagnose.effects import nominal_values  # noqa: E402
 from pendsweep.measured.diagnose.populations import RANGES  # noqa: E402
-from pendsweep.measured.diagnose.replay import midpoint_values, noise_std  # noqa: E402
+from pendsweep.measured.diagnose.signals import midpoint_values, noise_std  # noqa: E402
 from pendsweep.measured.diagnose.signatures import cross_correlation, decrement_fit, envelope  # noqa: E402
 from pendsweep.measured.records import find_free_swing_data, read_free_swing, read_record, write_record  # noqa: E402
 from pendsweep.model.params import FIG9_PO, TABLE_IV  # noqa: E402

@@ -33,8 +33,8 @@ FIGURE = Path("results/diagnosis_confusion.png")
 
 def evaluate(seed: int) -> dict:
     """Generate the case of ``seed``, diagnose it, and score the verdict."""
-    from ..measured.diagnose.chain import diagnose_records
     from ..measured.diagnose.effects import EFFECTS
+    from ..measured.diagnose.pipeline import diagnose_records
     from ..measured.diagnose.populations import draw_case
     from ..measured.diagnose.testbench import generate
 
@@ -80,8 +80,8 @@ def evaluate(seed: int) -> dict:
 def evaluate_look_alike(seed: int, kind: str) -> dict:
     """Generate the look-alike record of ``seed`` (:func:`~pendsweep.measured.diagnose.populations.draw_look_alike_case`),
     diagnose it as a user would, and score it: right alone (no look-alike tied), right or tied, the tie's reason."""
-    from ..measured.diagnose.chain import diagnose_records
     from ..measured.diagnose.effects import EFFECTS
+    from ..measured.diagnose.pipeline import diagnose_records
     from ..measured.diagnose.populations import LOOK_ALIKE_CAUSES, SEPARATING_FORCINGS, generate_look_alike_case
 
     forcing, case, record = generate_look_alike_case(seed, kind)

@@ -5,7 +5,7 @@ and second-order servos behind transport delays (and near-ideal ones), commands
 ramped or held, forward predictors, load-cell lags, central-difference
 controllers, calibration errors of the nominal delay, LVDT noise and drift
 (no code shared with the replays). Each record is diagnosed part by part
-(:func:`pendsweep.measured.diagnose.chain.diagnose_parts`); the first
+(:func:`pendsweep.measured.diagnose.pipeline.diagnose_parts`); the first
 :data:`CLOSED_LOOP_RECORDS` also by the closed-loop replay, the method before
 issue 22, for comparison. Seeds: ``TEST_SEEDS`` (range B); the tolerances were
 chosen on ``CALIBRATION_SEEDS``.
@@ -57,8 +57,8 @@ def right(truth: str, verdict: str) -> bool:
 def evaluate(seed: int, closed_loop: bool) -> dict:
     """Generate the servo-rig case of ``seed``, diagnose it (and in closed loop), score the verdicts."""
     from ..measured.diagnose import Replay, diagnose
-    from ..measured.diagnose.chain import diagnose_parts
     from ..measured.diagnose.effects import PART_OF
+    from ..measured.diagnose.pipeline import diagnose_parts
     from ..measured.diagnose.populations import LOOK_ALIKES, generate_rig_case
 
     category, case, record = generate_rig_case(seed)
@@ -109,7 +109,7 @@ def _estimate(js: dict, cause: str) -> float | None:
 def evaluate_joint(seed: int) -> dict:
     """Several records of one servo rig (:func:`~pendsweep.measured.diagnose.populations.generate_rig_session`) diagnosed
     jointly, part by part, and scored as one record."""
-    from ..measured.diagnose.chain import diagnose_parts
+    from ..measured.diagnose.pipeline import diagnose_parts
     from ..measured.diagnose.populations import generate_rig_session
 
     category, cases, records = generate_rig_session(seed, JOINT_RECORDS)

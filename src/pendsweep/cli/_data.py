@@ -96,9 +96,9 @@ def diagnose(data, json_out, report_dir, horizon, folds, causes, jobs, model_fil
     numerical model (docs/measured-data.md). Prints the verdict JSON.
     """
     from ..engine.scan import check_jobs, check_work
-    from ..measured.diagnose.chain import PartsDiagnosis, diagnose_records, diagnosis_work_of
-    from ..measured.diagnose.parts_report import write_parts_report
-    from ..measured.diagnose.report import write_report
+    from ..measured.diagnose.judge import PartsDiagnosis
+    from ..measured.diagnose.pipeline import diagnose_records, diagnosis_work_of
+    from ..measured.diagnose.report import write_parts_report, write_report
     from ..measured.records import read_record
     from ._sweep_options import load_model_file
 

@@ -44,7 +44,8 @@ from ...errors import ConfigError
 from ...kernels import pendulum_trace
 from ...model.params import kernel_vector
 from ..records import Record
-from .replay import MAX_STEP, noise_std, smoothed
+from .replay.whole import MAX_STEP
+from .signals import noise_std, smoothed
 from .signatures import extrema
 
 #: Names of the physical parameters (per unit inertia) and nuisance parameters.

@@ -44,7 +44,7 @@ class Effect:
 
 _ALL = ("free_decay", "forced", "substructured", "physical")
 _OSC = ("forced", "substructured", "numerical")
-#: The physical substructure of a substructured test, replayed on its own (:mod:`.parts`).
+#: The physical substructure of a substructured test, replayed on its own (:mod:`.replay.parts`).
 _RIG = ("substructured", "physical")
 _INF = math.inf
 
@@ -77,7 +77,7 @@ EFFECTS: dict[str, Effect] = {
     )
 }
 
-#: The actuator causes the transfer-system identification names (:mod:`.transfer`), with the
+#: The actuator causes the transfer-system identification names (:mod:`.identify.transfer`), with the
 #: parameter each is reported by; they are not fitted by the replays.
 ACTUATOR_CAUSES = {
     "actuator_delay": ("tau", "s", "the actuator's effective delay at the forcing frequency differs from nominal"),

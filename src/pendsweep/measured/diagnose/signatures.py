@@ -21,7 +21,7 @@ import numpy as np
 import pandas as pd
 from scipy.signal import welch
 
-from .replay import smoothed
+from .signals import smoothed
 
 
 def extrema(t: np.ndarray, theta: np.ndarray, min_amplitude: float = 0.0) -> pd.DataFrame:

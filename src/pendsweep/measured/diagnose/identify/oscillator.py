@@ -54,7 +54,7 @@ tones taken out (a tone between the spectrum's bins has sidelobes, no peaks
 of their own) and above the quasi-static band (:data:`QUASI_STATIC_INERTIA`:
 there the sensors' drift, not the oscillator). Where the record cannot
 separate stiffness from mass the diagnosis ties them whatever the replays'
-held-out blocks say (``fit.FORCED_TIES``).
+held-out blocks say (``judge.FORCED_TIES``).
 """
 
 from __future__ import annotations
@@ -75,8 +75,6 @@ from scipy.optimize import least_squares
 #: peaks and quasi-static ones dropped, a steady tone's window sidelobes and the sensors' drift gave
 #: 1e5-1e8 on one tone: separable by the factor, not by the record.)
 SEPARABLE_VIF = 1e8
-#: The K, M, C fitted together start a pair's fit only where the regression is this well conditioned.
-WELL_CONDITIONED_VIF = 1e3
 #: A spectral peak of the external force is a tone when it holds this share of the largest peak.
 TONE_SHARE = 0.05
 #: The force is a sweep (not tones) when its tones hold less than this share of its power.
@@ -335,32 +333,6 @@ def identify_oscillator(replay: Any) -> OscillatorIdentification | None:
     envelope = _envelope(y)
     driven = freqs[len(tones) :] if sweep is None else []
     return OscillatorIdentification(tones, sweep, transient, estimates, stderr, alone, inflation, envelope, driven)
-
-
-#: Vocabulary causes whose parameter this stage estimates.
-IDENTIFIED = {"oscillator_stiffness": "K", "oscillator_mass": "M", "oscillator_damping": "C", "spring_hardening": "k3"}
-
-
-def identified_starts(
-    identified: list[OscillatorIdentification | None], causes: tuple[str, ...]
-) -> tuple[dict[str, float], ...]:
-    """Starts of a candidate's fit where the records point: each identified parameter of ``causes``
-    fitted alone (one cause) or together (a pair of them, only where every record separates K from M),
-    the median over the records; none when no record identifies them or a start is unphysical (a
-    mass, stiffness or damping at or below zero)."""
-    params = [IDENTIFIED[c] for c in causes if c in IDENTIFIED]
-    found = [i for i in identified if i is not None]
-    if not params or not found:
-        return ()
-    if len(params) == 1:
-        start = {params[0]: float(np.median([i.alone[params[0]] for i in found]))}
-    elif all(i.inflation["M"] < WELL_CONDITIONED_VIF for i in found):
-        start = {p: float(np.median([i.estimates[p] for i in found])) for p in params}
-    else:
-        return ()
-    if any(start.get(p, 1.0) <= 0.0 for p in ("K", "M", "C")):
-        return ()
-    return (start,)
 
 
 def _spectrum(x: np.ndarray) -> np.ndarray:

@@ -1,6 +1,6 @@
 """The parts of a substructured test replayed each on its own: physical substructure and numerical model.
 
-The closed-loop replay of a substructured record (:class:`~.replay.Replay`)
+The closed-loop replay of a substructured record (:class:`~.whole.Replay`)
 runs command, actuator, specimen and force feedback together, so an error in
 one part is seen through all of them and any parameter may absorb it: a servo
 that lags is fitted as a lighter numerical mass. A record holds what is needed
@@ -9,7 +9,7 @@ to open the loop at both of its interfaces:
 :class:`PhysicalReplay` (kind ``physical``)
     The specimen (the pendulum on its platform) driven by the platform's
     motion, compared with the encoder ``theta`` and the load cell ``Fs``. The
-    motion is the identified transfer model's (:mod:`.transfer`) response to
+    motion is the identified transfer model's (:mod:`..identify.transfer`) response to
     the command: the LVDT reading, denoised through a model checked against
     it, with exact derivatives. Candidates: the pendulum's (length, friction,
     damping, drag, encoder zero), the platform's mass and damping, and the
@@ -39,11 +39,12 @@ import math
 
 import numpy as np
 
-from ...kernels._measured import numerical_trace, platform_trace
-from ...model.params import kernel_vector
-from ..records import Record
-from .effects import nominal_values
-from .replay import DEFAULT_HORIZON, FOLDS, MAX_STEP, Replay, _cut, midpoint_values, smoothed
+from ....kernels._measured import numerical_trace, platform_trace
+from ....model.params import kernel_vector
+from ...records import Record
+from ..effects import nominal_values
+from ..signals import midpoint_values, smoothed
+from .whole import DEFAULT_HORIZON, FOLDS, MAX_STEP, Replay, _cut
 
 #: Noise floor of the numerical part: the relative model-form error that controller conventions
 #: unknown to the replay leave (chosen on the calibration seeds; see docs/measured-data.md).

@@ -43,13 +43,14 @@ import math
 
 import numpy as np
 from scipy.ndimage import maximum_filter1d, minimum_filter1d
-from scipy.signal import savgol_coeffs, savgol_filter
 
-from ...errors import ConfigError
-from ...kernels import driven_trace, pendulum_trace, substructured_replay
-from ...model.params import ENCODER_RESOLUTION, kernel_vector
-from ..records import Record
-from .effects import nominal_values
+from ....errors import ConfigError
+from ....kernels import driven_trace, pendulum_trace, substructured_replay
+from ....model.params import ENCODER_RESOLUTION, kernel_vector
+from ...records import Record
+from ..effects import nominal_values
+from ..identify.oscillator import identify_oscillator
+from ..signals import MAX_STROKE, midpoint_values, noise_std, rounding_std, smoothed, smoothing_gain
 
 #: One-sigma uncertainty [rad] of an encoder zero read off a resting pendulum's constant angle:
 #: uniform within half an encoder step (Table III's; one level shows no step of its own).
@@ -57,9 +58,6 @@ REST_LEVEL_SIGMA = ENCODER_RESOLUTION / math.sqrt(12.0)
 
 #: Channels compared per kind.
 CHANNELS = {"free_decay": ("theta",), "forced": ("y", "theta"), "substructured": ("y", "theta", "y_cmd", "Fs")}
-#: Largest platform displacement a record may hold [m]: the rig's stroke is centimetres, so a larger one
-#: is a unit error (millimetres read as metres).
-MAX_STROKE = 1.0
 #: Default short-horizon segment length for forced records [s].
 DEFAULT_HORIZON = 4.0
 #: Cross-validation folds and contiguous blocks per fold.
@@ -69,8 +67,6 @@ BLOCKS_PER_FOLD = 4
 MOTION_WINDOW = 0.25
 #: Largest integration step of free-swing replays [s] (the paper's 1 ms).
 MAX_STEP = 1e-3
-#: Savitzky-Golay window for state estimates [s] (cubic).
-SMOOTH_WINDOW = 0.05
 #: Leading part of a substructured record that only serves as command history [s]: the
 #: actuator's position there follows commands sent before the record began.
 COMMAND_HISTORY = 0.05
@@ -92,43 +88,6 @@ FIT_SNR = 100.0
 STATE_STEPS = np.array([1e-7, 1e-6, 1e-7, 1e-6])
 
 
-def noise_std(x: np.ndarray) -> float:
-    """Sensor-noise standard deviation of a finely sampled channel.
-
-    Third differences remove the smooth signal (its contribution scales as
-    ``(omega dt)^3``); white noise of variance s^2 gives third differences of
-    variance 20 s^2.
-    """
-    return float(np.std(np.diff(x, 3)) / math.sqrt(20.0))
-
-
-def rounding_std(x: np.ndarray, window: int) -> float:
-    """One-sigma rounding error of a quantised channel over the record [unit of x].
-
-    A reading rounded to steps ``q`` errs uniformly within half a step while the
-    signal crosses levels (variance ``q^2 / 12``), however slowly it moves; third
-    differences see that error only at the steps themselves, so
-    :func:`noise_std` misses it on a slow signal (a small pendulum swing read in
-    a few encoder steps: 4e-5 rad against q / sqrt(12) = 3.8e-4). The share of
-    samples whose ``window`` holds a change of level weights it: a reading that
-    stays on one level is exact for a model that holds it. ``q`` is the
-    smallest change between samples (an unquantised channel's is tiny, and so
-    is its rounding error).
-    """
-    steps = np.abs(np.diff(x))
-    if not np.any(steps > 0):
-        return 0.0
-    quantum = float(steps[steps > 0].min())
-    changing = maximum_filter1d(x, window) != minimum_filter1d(x, window)
-    return quantum / math.sqrt(12.0) * math.sqrt(float(np.mean(changing)))
-
-
-def smooth_window(n: int, dt: float) -> int:
-    """Samples of the Savitzky-Golay window of :func:`smoothed` for ``n`` samples of step ``dt`` (odd)."""
-    w = max(5, int(round(SMOOTH_WINDOW / dt)) | 1)
-    return min(w, n - 1 + n % 2)
-
-
 def check_displacement_units(record: Record) -> None:
     """Refuse a displacement column the record's kind compares that reaches beyond any stroke of the rig
     (:data:`MAX_STROKE`): millimetres read as metres, which a replay would otherwise fit as an effect."""
@@ -142,38 +101,6 @@ def check_displacement_units(record: Record) -> None:
                 f"({MAX_STROKE:g} m): millimetres read as metres? Declare its unit in the metadata's columns, "
                 f'e.g. {{"{col}": {{"unit": "mm"}}}}'
             )
-
-
-def smoothed(x: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """Cubic Savitzky-Golay estimates of ``x`` and its derivative [unit/s]."""
-    w = smooth_window(len(x), dt)
-    return savgol_filter(x, w, 3), savgol_filter(x, w, 3, deriv=1, delta=dt)
-
-
-def smoothing_gain(n: int, dt: float, at: np.ndarray) -> np.ndarray:
-    """How much white noise of unit variance moves :func:`smoothed`'s estimates at samples ``at``:
-    (len(at), 2) standard deviations of the value [-] and of the derivative [1/s].
-
-    The norms of the filter's coefficients, the one-sided ones within half a window of the record's
-    ends (``savgol_filter``'s ``interp`` mode fits the first and last windows): a state estimated at a
-    record's first sample is several times worse than one inside it.
-    """
-    w = smooth_window(n, dt)
-    half = w // 2
-    out = np.empty((len(at), 2))
-    for k, i in enumerate(at):
-        pos = half if half <= i < n - half else (i if i < half else w - (n - i))
-        for d in (0, 1):
-            out[k, d] = float(np.linalg.norm(savgol_coeffs(w, 3, deriv=d, delta=dt, pos=pos, use="dot")))
-    return out
-
-
-def midpoint_values(f: np.ndarray) -> np.ndarray:
-    """Four-point (cubic) interpolation of ``f`` halfway between samples."""
-    h = 0.5 * (f[:-1] + f[1:])
-    if len(f) >= 4:
-        h[1:-1] = (-f[:-3] + 9.0 * f[1:-2] + 9.0 * f[2:-1] - f[3:]) / 16.0
-    return h
 
 
 class Replay:
@@ -266,11 +193,9 @@ class Replay:
         self.substeps = max(1, math.ceil(self.dt / MAX_STEP - 1e-9))
 
     def identification(self):
-        """The oscillator's dynamics read off this record before any replay (:mod:`.identify`; None for
+        """The oscillator's dynamics read off this record (:mod:`..identify.oscillator`; None for
         kinds without an oscillator), computed once."""
         if not hasattr(self, "_identification"):
-            from .identify import identify_oscillator  # the identify stage reads replays: imported late
-
             self._identification = identify_oscillator(self)
         return self._identification
 

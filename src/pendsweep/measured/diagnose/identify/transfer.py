@@ -40,9 +40,9 @@ from typing import Any
 import numpy as np
 from scipy.optimize import least_squares
 
-from ...errors import ConfigError
-from ...kernels._measured import sampled_transfer_trace, transfer_trace
-from .replay import MAX_STROKE, noise_std
+from ....errors import ConfigError
+from ....kernels._measured import sampled_transfer_trace, transfer_trace
+from ..signals import MAX_STROKE, noise_std
 from .servo_step import servo_propagator
 
 #: Transfer models by name: (order of the servo, names of the nonlinear parameters).

@@ -1,4 +1,4 @@
-"""Fitting candidate causes to records: the least-squares problem over one or several replays, its fits and uncertainties."""
+"""The fit stage's least squares: the problem over one or several replays, one model's fit, its cross-validation and uncertainties."""
 
 from __future__ import annotations
 
@@ -9,10 +9,10 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import least_squares
 
-from ...errors import ConfigError
-from .effects import CHAIN_PARAMS, EFFECTS, effect
-from .replay import REST_LEVEL_SIGMA, Replay
-from .transfer import lag_of
+from ....errors import ConfigError
+from ..effects import CHAIN_PARAMS, EFFECTS, effect
+from ..identify.transfer import lag_of
+from ..replay.whole import REST_LEVEL_SIGMA, Replay
 
 #: Channels recorded exactly (the controller's own command): no sensor noise to compare with.
 EXACT_CHANNELS = ("y_cmd",)
@@ -302,7 +302,7 @@ def fit_model(
     ``starts`` gives starting values by key, e.g. the nominal fit's nuisance
     values, so that a candidate starts from the optimum it nests. Each of
     ``other_starts`` is tried too (a start the record points to, see
-    :mod:`.identify`; the objective may hold several basins). On one record
+    :mod:`..identify.oscillator`; the objective may hold several basins). On one record
     the fit with the least cross-validated error is kept (the held-out
     blocks decide, ties by the squared error on the compared samples); on
     several records the one with the least squared error (each start's

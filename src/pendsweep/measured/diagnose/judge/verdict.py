@@ -1,31 +1,5 @@
-"""Fits of candidate effects, their cross-validated comparison and the verdict.
-
-One record or several records of one rig form a :class:`Problem`. Physical
-parameters (ModelParams fields) are shared by all records; measurement-chain
-parameters (``gain``, ``theta_offset``, ``tau``, ``gain_Fs``) and, on free
-decays, the initial angle and velocity belong to each record (on several free
-decays also each record's encoder zero, fitted after the rest). Every model (the
-nominal included) is fitted with :func:`scipy.optimize.least_squares` on the
-compared samples (where the data move, see :class:`~.replay.Replay`).
-Several records are fitted in a canonical order (by content), shared
-parameters start from the median of the records' data-based starts, and ties
-are broken by name, so the verdict does not depend on the order of the files.
-
-Validation
-----------
-*One record*: blocked cross-validation. The compared samples are cut into
-``folds x BLOCKS_PER_FOLD`` contiguous blocks; fold ``k`` refits the model
-without blocks ``k, k + folds, ...`` and predicts them. *Several records*:
-leave-one-record-out; the shared physics is fitted on the other records, the
-left-out record's own parameters (initial state, chain) on itself with the
-physics fixed, and its prediction error is the cross-record error. Either way
-every compared sample gets an out-of-fold prediction, and the cross-validated
-error ``error_cv`` is the NRMSE of those predictions. On one record a fold's refit is one Gauss-Newton step from the fit on all
-compared samples, using that fit's Jacobian rows of the fold's training
-samples (exact for a residual linear in the parameters; a full refit per fold
-would multiply the cost by the number of folds). The fold estimates give a
-jackknife uncertainty, which accounts for correlated residuals and model-form
-error that the Jacobian does not see.
+"""The judge stage's verdict on one replayed part: :class:`Diagnosis` (the :mod:`.tests` of the fit stage's
+best single cause and best pair, what remains, ties and stated uncertainties).
 
 Verdict
 -------
@@ -73,35 +47,19 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from joblib import Parallel, delayed
-from threadpoolctl import threadpool_limits
 
-from ...engine.scan import Work
-from ...errors import ConfigError
-from .effects import EFFECTS, applicable
-from .fitting import Fit, Problem, _params, _solve, fit_model
-from .identify import OscillatorIdentification, identified_starts
-from .judging import (
-    _judge,
-    _quantisation_bounded,
-    _rank,
-    _score,
-    block_test,
-    channel_ratios,
-    failed_tests,
-    implausible,
-    structured_residual,
-)
-from .replay import Replay
-from .thresholds import (
-    BEAM,
+from ..fit import Fit, Problem, channel_ratios, structured_residual
+from ..identify.oscillator import OscillatorIdentification
+from ..replay import Replay
+from ..signatures import residual_signature
+from .tests import (
     P_VALUE,
-    PARTNERS,
-    SECOND_ROUND_RATIO,
-    SECOND_SHARE_MIN,
     SHARE_MIN,
     UNCERTAINTY_CALIBRATION,
     UNEXPLAINED_RATIO,
+    _quantisation_bounded,
+    block_test,
+    failed_tests,
 )
 
 #: Look-alike pairs tied whenever the record cannot separate them (:meth:`Diagnosis.tied_with`). Stiffness
@@ -118,7 +76,7 @@ class Diagnosis:
     candidates: list[Fit]
     cause: str
     tests: dict[str, Any]
-    #: Per record, the oscillator's dynamics read off it before any replay (:mod:`.identify`), or None.
+    #: Per record, the oscillator's dynamics read off it before any replay (:mod:`..identify.oscillator`), or None.
     identified: list[OscillatorIdentification | None] = field(default_factory=list)
 
     @property
@@ -227,7 +185,7 @@ class Diagnosis:
         return all(v is not None and not v[0] for v in verdicts)
 
     def tie_reasons(self) -> dict[str, str]:
-        """Why each tied look-alike of the verdict is tied, from what the record holds (:mod:`.identify`).
+        """Why each tied look-alike of the verdict is tied, from what the record holds (:mod:`..identify.oscillator`).
 
         For the oscillator's look-alikes (K against M, K against k3): that the record cannot separate
         them (one steady tone: only ``K - M omega^2``; a constant amplitude: a cubic spring is a
@@ -290,8 +248,6 @@ class Diagnosis:
 
     def to_json(self) -> dict[str, Any]:
         """cause, estimate, uncertainty, error_before/after, gain, explained_share, unexplained, ..."""
-        from .signatures import residual_signature
-
         best = self.best
         before = self.nominal.error_cv
         return {
@@ -327,178 +283,3 @@ class Diagnosis:
             "identification": [i.to_json() if i is not None else None for i in self.identified],
             "nuisance": {k: v for k, v in self.verdict_fit.values.items() if k.split("@")[0] in self.problem.nuisance},
         }
-
-
-#: Replays (model evaluations over a whole record) one least-squares fit takes, an upper
-#: estimate: measured 17 to 75 on 10,000-sample records of each kind, Jacobians included.
-FIT_EVALUATIONS = 100
-#: Memory per record sample of a diagnosis [bytes]: every fit keeps its simulated channels
-#: (about 20 fits x 5 channels x 8 bytes) besides the record and its smoothed derivatives.
-DIAGNOSIS_BYTES_PER_SAMPLE = 1024
-
-
-def diagnosis_work(replays: list[Replay], causes: list[str] | None = None) -> Work:
-    """An upper estimate of a diagnosis's work, before it starts (:func:`pendsweep.engine.scan.check_work`).
-
-    ``units`` is the replays of the whole record set (the nominal fit, one fit
-    per candidate and the second round's ``BEAM x PARTNERS`` pairs, each of
-    :data:`FIT_EVALUATIONS` replays; several records: times ``1 + 2 n`` for the
-    leave-one-record-out refits); ``steps`` the integration steps of one
-    replay of every record (samples x substeps). Measured rate: about 80 ns a
-    step, so the default limit of 1e10 steps is about a quarter of an hour.
-    """
-    kinds = {rp.kind for rp in replays}
-    n_causes = len(causes) if causes else max(len(applicable(k)) for k in kinds)
-    fits = 1 + n_causes + (BEAM * PARTNERS if n_causes > 1 else 0)
-    if len(replays) > 1:
-        # Leave-one-record-out: every fit is refitted per record, the shared parameters on the others
-        # and the record's own on itself (measured 3.3 x on two records).
-        fits *= 1 + 2 * len(replays)
-    steps = float(sum(rp.n * rp.substeps for rp in replays))
-    samples = sum(rp.n for rp in replays)
-    return Work(fits * FIT_EVALUATIONS, 1.0, steps, result_bytes=samples * DIAGNOSIS_BYTES_PER_SAMPLE)
-
-
-def diagnose(replays: Replay | list[Replay], causes: list[str] | None = None, n_jobs: int = 1) -> Diagnosis:
-    """Fit the nominal model and every applicable candidate; return the verdict.
-
-    Parameters
-    ----------
-    replays : Replay or list of Replay
-        One record, or several records of one rig (fitted jointly).
-    causes : list of str, optional
-        Restrict the candidates (default: all applicable to the records' kind).
-    n_jobs : int
-        Candidates fitted in parallel (threads; the kernels release the GIL).
-    """
-    # The fits' tall, thin SVDs run several times faster on one BLAS thread than on an
-    # oversubscribed pool (candidates are parallelised by joblib instead).
-    with threadpool_limits(1, user_api="blas"):
-        return _diagnose(Problem(replays if isinstance(replays, list) else [replays]), causes, n_jobs)
-
-
-def _pair_starts(problem: Problem, single: Fit, partner: Fit) -> tuple[dict[str, float], ...]:
-    """Further starts of the pair ``single + partner`` on several records: from the partner's own
-    fit, and from both singles' values together.
-
-    A joint fit of several releases of a stick-slip pendulum has more than one
-    minimum (on the three real records the length plus Coulomb friction reached
-    cross-record errors from 0.35 to 1.0 by start alone); the pair's fit must not
-    depend on which of its two causes ranked first.
-    """
-    if not problem.joint:
-        return ()
-    own = {k: partner.values[k] for c in partner.causes for k in partner.keys_of(c)}
-    return _without_zeros(partner.values), _without_zeros(dict(single.values, **own))
-
-
-def _without_zeros(values: dict[str, float]) -> dict[str, float]:
-    """``values`` less the per-record encoder zeros (a fit starting from them fits the zeros last)."""
-    return {k: v for k, v in values.items() if not k.startswith("theta_offset@")}
-
-
-def _diagnose(problem: Problem, causes: list[str] | None, n_jobs: int) -> Diagnosis:
-    allowed = [e.cause for e in applicable(problem.kind)]
-    # A cause whose parameter is already a nuisance of every model is no candidate by default.
-    default = [c for c in allowed if EFFECTS[c].param not in problem.nuisance]
-    causes = default if causes is None else list(causes)
-    bad = [c for c in causes if c not in allowed]
-    if bad:
-        raise ConfigError(
-            f"cause(s) {', '.join(bad)} do not apply to kind {problem.kind!r}; applicable: {', '.join(allowed)}"
-        )
-    nominal = fit_model(problem)
-    # Candidates start from the nominal model's initial states fitted with the encoder zeros held
-    # (freed zeros absorb what they can of the nominal model's error and shift the initial states;
-    # fit_model frees the zeros after the rest).
-    initial = nominal.values
-    if "theta_offset" in problem.nuisance:
-        params = _params(problem, (), {})
-        held = [p for p in params if p.key.split("@")[0] == "theta_offset"]
-        initial, _, _ = _solve(
-            problem,
-            [p for p in params if p not in held],
-            [rp.eval_idx for rp in problem.replays],
-            {p.key: p.start for p in held},
-            staged=True,
-        )
-    nuisance = {k: v for k, v in initial.items() if k.split("@")[0] in problem.replays[0].nuisance}
-    # Fitted initial states of a wrong model can be nonsense (a free decay whose period is 3 % off
-    # drifts a cycle over 45 swings, and the nominal fit then settles on a swing of 0.02 rad where
-    # the data start at 0.5): candidates also start from the data's own initial states, and the
-    # better fit is kept.
-    data_start = ({},) if any(rp.fits_initial_state for rp in problem.replays) else ()
-    # The oscillator's parameters also start where the record points (identify.py): a fit from the
-    # nominal can stop in another basin when a resonance lies between the nominal and the truth.
-    identified = [rp.identification() for rp in problem.replays]
-    pool = Parallel(n_jobs=n_jobs, prefer="threads")
-    fits = pool(
-        delayed(fit_model)(
-            problem,
-            (c,),
-            nuisance,
-            data_start + tuple(dict(nuisance, **s) for s in identified_starts(identified, (c,))),
-        )
-        for c in causes
-    )
-    tests: dict[str, Any] = {"noise_floor": problem.floor}
-    verdict = "none"
-    # A cause whose estimate is physically implausible is absorbing something else: it is not named,
-    # nor started from in the second round (its status says why).
-    tests["implausible"] = {f.cause: r for f in fits if (r := implausible(problem, f))}
-    plausible = [f for f in fits if f.cause not in tests["implausible"]]
-    first = min(plausible, key=_rank) if plausible else None
-    if first is not None:
-        tests["first_round"] = _judge(problem, nominal, first, SHARE_MIN, first.causes)
-        if tests["first_round"]["passed"]:
-            verdict = first.cause
-    # Second round from the BEAM best single causes (named or not: a single
-    # effect may fail the tests when a second one is present, and the best
-    # single cause of a two-effect record need not be one of the two).
-    if first is not None and len(causes) > 1 and structured_residual(problem, first, SECOND_ROUND_RATIO):
-        singles = {f.causes[0]: f for f in fits}
-        ranked = sorted(plausible, key=_rank)[:BEAM]
-        jobs, tests["partner_scores"] = [], {}
-        for single in ranked:
-            others = [c for c in causes if c != single.cause]
-            scores = dict(zip(others, pool(delayed(_score)(problem, single, c) for c in others)))
-            partners = sorted(others, key=lambda c: -scores[c])[:PARTNERS]
-            if problem.kind == "substructured" and "actuator_delay" in others and "actuator_delay" not in partners:
-                partners.append("actuator_delay")  # its data-based start matters more than a local score
-            tests["partner_scores"][single.cause] = scores
-            jobs += [
-                (single, c) for c in partners if not any({single.cause, c} == set(s.causes) | {p} for s, p in jobs)
-            ]
-        pairs = pool(
-            delayed(fit_model)(
-                problem,
-                s.causes + (c,),
-                start := _without_zeros(dict(nuisance, **s.values)),
-                _pair_starts(problem, s, singles[c])
-                + tuple(dict(start, **i) for i in identified_starts(identified, s.causes + (c,))),
-            )
-            for s, c in jobs
-        )
-        tests["implausible"].update({f.cause: r for f in pairs if (r := implausible(problem, f))})
-        pair = min([f for f in pairs if f.cause not in tests["implausible"]] or pairs, key=_rank)
-        # Judged against the better of its own two single causes.
-        base = min((singles[c] for c in pair.causes), key=_rank)
-        second = _judge(problem, base, pair, SECOND_SHARE_MIN, pair.causes)
-        against_nominal = _judge(problem, nominal, pair, SHARE_MIN, pair.causes)
-        second["against_nominal_passed"] = against_nominal["passed"]
-        tests["second_against_nominal"] = against_nominal
-        chain_ok = True
-        with_delay = [f for f in pairs if set(f.causes) == {base.cause, "actuator_delay"}]
-        if with_delay and "actuator_delay" not in pair.causes:
-            # The pair must beat its single cause with the actuator's delay freed:
-            # otherwise the second parameter is soaking up the actuator's model-form error.
-            chained = with_delay[0]
-            second["chain_check"] = {"single_with_delay_error": chained.error_cv, "pair_error": pair.error_cv}
-            chain_ok = pair.error_cv**2 < chained.error_cv**2 - 0.5 * (base.error_cv**2 - pair.error_cv**2)
-        second["chain_ok"] = chain_ok
-        tests["second_round"] = second
-        if second["passed"] and against_nominal["passed"] and chain_ok and pair.cause not in tests["implausible"]:
-            verdict = pair.cause
-        fits += pairs
-    fits.sort(key=_rank)
-    return Diagnosis(problem, nominal, fits, verdict, tests, identified)
