@@ -5,12 +5,41 @@ coupled pendulum-oscillator system using real-time dynamic substructuring".
 """
 
 import importlib
+import sys
 
-from . import _moved
 from ._version import __version__
 from .errors import ConfigError, ParameterError, PendsweepError, ResultsError
 
-_moved.install()  # 0.1's module paths keep working for one release, with a DeprecationWarning
+
+class _OldPaths:
+    """0.1's module paths, kept for one release with a DeprecationWarning (:mod:`pendsweep._moved`).
+
+    One instance goes last on :data:`sys.meta_path`, asked only for a name no
+    file answers (``pendsweep.sweep``); one goes first and answers only for
+    submodules of an old package (``pendsweep.site.rig``), which the file
+    finders would otherwise load a second time under the old name. The
+    table is imported only when an old path is used.
+    """
+
+    def __init__(self, first: bool) -> None:
+        self.first = first
+
+    def find_spec(self, name, path=None, target=None):
+        if not name.startswith("pendsweep."):
+            return None
+        if self.first:
+            package = name.rpartition(".")[0]
+            parent = sys.modules.get(package)
+            if parent is None or parent.__name__ == package:
+                return None  # not below an old package's alias
+        from ._moved import find_spec
+
+        return find_spec(name)
+
+
+if not any(isinstance(finder, _OldPaths) for finder in sys.meta_path):
+    sys.meta_path.insert(0, _OldPaths(first=True))
+    sys.meta_path.append(_OldPaths(first=False))
 
 # Exports from modules that pull in numpy, pandas, scipy or the numba kernels are
 # imported on first use (PEP 562), so that `pendsweep --help` starts in a blink.
