@@ -51,13 +51,19 @@ MOVED = {
     "pendsweep.data": "pendsweep.measured.records",
     "pendsweep.logs": "pendsweep.measured.logs",
     "pendsweep.diagnose": "pendsweep.measured.diagnose",
+    # the diagnosis's modules that moved whole into a pipeline stage (issue 35)
+    "pendsweep.diagnose.identify": "pendsweep.measured.diagnose.identify.oscillator",
+    "pendsweep.diagnose.transfer": "pendsweep.measured.diagnose.identify.transfer",
+    "pendsweep.diagnose.servo_step": "pendsweep.measured.diagnose.identify.servo_step",
+    "pendsweep.diagnose.replay": "pendsweep.measured.diagnose.replay.whole",
+    "pendsweep.diagnose.parts": "pendsweep.measured.diagnose.replay.parts",
+    "pendsweep.diagnose.fitting": "pendsweep.measured.diagnose.fit.least_squares",
     "pendsweep.plotting": "pendsweep.figures.plotting",
 }
 #: 0.1 modules that are gone (CHANGELOG.md names what replaced each): refused, not aliased.
 REMOVED = {
-    "pendsweep.diagnose.fit", "pendsweep.diagnose.fitting", "pendsweep.diagnose.judging",
-    "pendsweep.diagnose.thresholds", "pendsweep.diagnose.parts_report", "pendsweep.diagnose.chain",
-    "pendsweep.diagnose.transfer", "pendsweep.diagnose.servo_step", "pendsweep.diagnose.parts",
+    "pendsweep.diagnose.fit", "pendsweep.diagnose.judging", "pendsweep.diagnose.thresholds",
+    "pendsweep.diagnose.chain", "pendsweep.diagnose.parts_report",
 }  # fmt: skip
 
 

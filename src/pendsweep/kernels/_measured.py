@@ -267,7 +267,7 @@ def transfer_trace(cmd, cmdd, tau, gain, order, rate, zeta, propagator, dt, per_
     free response the diagnosis fits the record's initial state with):
     ``(x, x')`` at the next row is ``P (x, x', u, u', u'', u''')`` with
     ``P`` the exact propagator over one row
-    (:func:`pendsweep.measured.diagnose.servo_step.servo_propagator`), so the cost does
+    (:func:`pendsweep.measured.diagnose.identify.servo_step.servo_propagator`), so the cost does
     not grow with the servo's bandwidth and the acceleration stays smooth.
 
     Parameters
@@ -354,7 +354,7 @@ def sampled_transfer_trace(
     command samples; the input ``u = gain * c(t - tau)`` is then a staircase or a broken line
     whose corners fall ``split = tau mod h`` after each output row's start (``h = dt /
     per_sample``). Each row is advanced in two exact pieces, ``first`` over ``split`` and
-    ``second`` over ``h - split`` (:func:`pendsweep.measured.diagnose.servo_step.servo_propagator`), with
+    ``second`` over ``h - split`` (:func:`pendsweep.measured.diagnose.identify.servo_step.servo_propagator`), with
     the input's line on each; the output rows are as :func:`transfer_trace`'s, the input taken
     with its new value at a switch (a pure delay: x' = u', x'' = 0 between the jumps).
 

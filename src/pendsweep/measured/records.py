@@ -101,7 +101,7 @@ class Record:
         Where the record came from.
     actuator : dict
         Optional nominal actuator model (``{"model": "second_order", "tau": s,
-        "rate": rad/s, "zeta": -}``, see :func:`pendsweep.measured.diagnose.transfer.nominal_actuator`);
+        "rate": rad/s, "zeta": -}``, see :func:`pendsweep.measured.diagnose.identify.transfer.nominal_actuator`);
         empty: a pure delay of ``tau``.
     sensors : dict
         Optional description of each column's sensor (free text), kept in the metadata.

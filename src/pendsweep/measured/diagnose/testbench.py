@@ -30,7 +30,7 @@ steps, 20 um rms noise and a slow random-walk drift, load cell 0.1 N rms noise
 and drift.
 
 Seed ranges: :data:`CALIBRATION_SEEDS` (range A) are the only records the
-verdict thresholds of :mod:`pendsweep.measured.diagnose.thresholds` were chosen on;
+verdict thresholds of :mod:`pendsweep.measured.diagnose.fit` and :mod:`pendsweep.measured.diagnose.judge.tests` were chosen on;
 :data:`TEST_SEEDS` (range B) are what the tests and the ``diagnosis``
 benchmark check.
 """

@@ -66,7 +66,7 @@ class PhysicalReplay(Replay):
         A ``substructured`` or ``rig`` record with ``theta`` and ``Fs``.
     motion : ndarray
         Platform x [m], x' [m/s], x'' [m/s^2] on ``2 * substeps`` rows per
-        sample (:meth:`pendsweep.measured.diagnose.transfer.TransferProblem.motion`).
+        sample (:meth:`pendsweep.measured.diagnose.identify.transfer.TransferProblem.motion`).
     substeps : int
         Pendulum RK4 steps per sample.
     horizon : float, optional
