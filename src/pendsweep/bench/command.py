@@ -151,6 +151,9 @@ def bench_command(quick: bool) -> dict:
     try:
         out = {
             "help_seconds": wall_time([*pendsweep, "--help"], work),
+            # The floor of every command: the interpreter alone, and `import pendsweep` (the public API, lazy).
+            "python_start_seconds": wall_time([sys.executable, "-c", "pass"], work),
+            "import_pendsweep_seconds": wall_time([sys.executable, "-c", "import pendsweep"], work),
             "canonical_seconds": wall_time(
                 [*pendsweep, "alpha", "--from", "0", "--to", "45", "-o", "c.parquet", "--overwrite"], work
             ),

@@ -42,6 +42,7 @@ from ._layout import (
     REC_Y_ABSMAX,
     STATUS_DIVERGED,
     STATUS_OK,
+    pendulum_params,
 )
 from ._records import TWO_PI, fold_extremes, record_close, wrap_angle, wrap_index
 from ._rhs import compile_physics
@@ -251,7 +252,7 @@ def emulated_kernel_function(precision: str = "float64", sgn_per_stage: bool = F
         cuda=cuda_module,
         REAL=real,
         SGN_PER_STAGE=bool(sgn_per_stage),
-        eq11_params=retarget(eq11_params, device, real),
+        eq11_params=retarget(eq11_params, device, real, pendulum_params=jit(pendulum_params)),
         eq11_step=retarget(eq11_step, device, real, signum=physics.signum, eq11_rk4=rk4),
         fold_extremes=retarget(fold_extremes, device, real, wrap_angle=wrap_angle_d),
         record_close=retarget(record_close, device, real, wrap_angle=wrap_angle_d),
