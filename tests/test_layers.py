@@ -51,6 +51,12 @@ def test_lint_imports_passes_and_fails_on_a_deliberate_upward_import(tmp_path):
     assert "pendsweep.backends.substructured -> pendsweep.hybrid.client" in broken.stdout
 
 
+def test_the_public_api_resolves_lazily():
+    code = "import sys, pendsweep; print('numpy' in sys.modules); [getattr(pendsweep, n) for n in pendsweep.__all__]"
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True)
+    assert done.stdout.split() == ["False"]  # `import pendsweep` itself loads no numpy; every export resolves
+
+
 @pytest.mark.parametrize(("old", "new"), sorted(_moved.MOVED.items()))
 def test_an_old_module_path_is_the_moved_module_with_a_warning(old, new):
     with warnings.catch_warnings(record=True) as caught:
