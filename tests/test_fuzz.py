@@ -103,6 +103,7 @@ def files(tmp_path_factory) -> dict[str, str]:
     for name, (csv, side) in records.items():
         _record(d, name, csv, side)
         f[name] = d / f"{name}.csv"
+    f["rec_good_sidecar"] = d / "rec_good.json"
     f["fs_bad"] = d / "fs_bad.txt"
     f["fs_bad"].write_text("trigger_start_deg, sample_rate, duration_sec\n135, fast, 20\n1\n2\n")
     f["fs_rate"] = d / "fs_rate.txt"
@@ -513,6 +514,8 @@ OTHER: list[tuple[list[str], str]] = [
     (["diagnose", "{rec_binary}"], "is not a text (UTF-8) file"),
     (["diagnose", "{rec_latin1}"], "is not a text (UTF-8) file"),
     (["diagnose", "{rec_nosidecar}"], "has no metadata sidecar"),
+    (["diagnose", "{rec_good}", "--json", "{rec_good_sidecar}"], "would overwrite the input"),
+    (["fit-damping", "{rec_good}", "--params-out", "{rec_good_sidecar}"], "would overwrite the input"),
     (["diagnose", "{rec_params_list}"], "metadata 'params' must be a JSON object"),
     (["diagnose", "{rec_params_str}"], "params.m = 'heavy'"),
     (["diagnose", "{rec_alpha_str}"], "forcing.alpha = 'loud'"),

@@ -27,11 +27,8 @@ class _OldPaths:
     def find_spec(self, name, path=None, target=None):
         if not name.startswith("pendsweep."):
             return None
-        if self.first:
-            package = name.rpartition(".")[0]
-            parent = sys.modules.get(package)
-            if parent is None or parent.__name__ == package:
-                return None  # not below an old package's alias
+        if self.first and getattr(sys.modules.get(name.rpartition(".")[0]), "__moved_to__", None) is None:
+            return None  # not below an old package's stand-in
         from ._moved import find_spec
 
         return find_spec(name)

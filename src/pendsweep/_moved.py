@@ -14,6 +14,7 @@ package, so this module is imported only when an old path is used.
 from __future__ import annotations
 
 import importlib
+import sys
 import warnings
 from importlib.machinery import ModuleSpec
 
@@ -60,11 +61,14 @@ MOVED = {
     "pendsweep.diagnose.fitting": "pendsweep.measured.diagnose.fit.least_squares",
     "pendsweep.plotting": "pendsweep.figures.plotting",
 }
-#: 0.1 modules that are gone (CHANGELOG.md names what replaced each): refused, not aliased.
+#: 0.1 modules that are gone, each with where its pieces went (CHANGELOG.md has the full list).
 REMOVED = {
-    "pendsweep.diagnose.fit", "pendsweep.diagnose.judging", "pendsweep.diagnose.thresholds",
-    "pendsweep.diagnose.chain", "pendsweep.diagnose.parts_report",
-}  # fmt: skip
+    "pendsweep.diagnose.fit": "diagnose and Diagnosis are in pendsweep.measured.diagnose (stages fit, judge)",
+    "pendsweep.diagnose.judging": "its tests are in pendsweep.measured.diagnose.judge.tests, the ranking in .fit",
+    "pendsweep.diagnose.thresholds": "the thresholds are in pendsweep.measured.diagnose.fit and .judge.tests",
+    "pendsweep.diagnose.chain": "diagnose_parts is in pendsweep.measured.diagnose (pipeline; judge.parts)",
+    "pendsweep.diagnose.parts_report": "the parts' report is in pendsweep.measured.diagnose.report",
+}
 
 
 def new_path(name: str) -> str | None:
@@ -75,8 +79,43 @@ def new_path(name: str) -> str | None:
     return None if old is None else MOVED[old] + name[len(old) :]
 
 
+class _OldPackage(type(sys)):
+    """0.1's package at its old path: a stand-in for the package at ``__moved_to__``.
+
+    A name is the new package's, except a 0.1 submodule, which is the old one
+    (its alias, or the reason it is gone): ``from pendsweep.diagnose import
+    replay`` is 0.1's replay module, as ``import pendsweep.diagnose.replay``
+    is. Old code binding its submodules here leaves the new package's names
+    alone.
+    """
+
+    def __init__(self, name: str, new: str) -> None:
+        super().__init__(name, f"0.1's {name}, now {new} (pendsweep._moved)")
+        self.__path__: list[str] = []  # a package: its submodules are looked up, by the finder in pendsweep
+        self.__moved_to__ = new
+
+    def __getattr__(self, attr: str):
+        if attr.startswith("__"):
+            raise AttributeError(attr)
+        old = f"{self.__name__}.{attr}"
+        if old in REMOVED or old in MOVED:
+            return importlib.import_module(old)
+        package = importlib.import_module(self.__moved_to__)
+        if hasattr(package, attr):
+            return getattr(package, attr)
+        try:
+            return importlib.import_module(old)
+        except ModuleNotFoundError as exc:
+            if exc.name != new_path(old):
+                raise
+            raise AttributeError(f"module {self.__name__!r} has no attribute {attr!r}") from None
+
+
 class _Alias:
-    """The loader of an old path: the module at its new path (no ``importlib.abc`` base: it costs 20 ms to import)."""
+    """The loader of an old path: the module at its new path (no ``importlib.abc`` base: it costs 20 ms to import).
+
+    A module is the very module at its new path; a package is an :class:`_OldPackage`.
+    """
 
     def __init__(self, new: str) -> None:
         self.new = new
@@ -84,19 +123,22 @@ class _Alias:
     def create_module(self, spec):  # -> types.ModuleType (not imported: 0.2 ms, a sixth of `import pendsweep`)
         warnings.warn(f"{spec.name} moved to {self.new}; the old path goes in pendsweep 0.3", DeprecationWarning, 2)
         module = importlib.import_module(self.new)
+        if hasattr(module, "__path__"):
+            return _OldPackage(spec.name, self.new)
         self.own_spec = module.__spec__
         return module
 
     def exec_module(self, module) -> None:
-        module.__spec__ = self.own_spec  # the import system gave it the alias's spec: it keeps its own
+        if not isinstance(module, _OldPackage):
+            module.__spec__ = self.own_spec  # the import system gave it the alias's spec: it keeps its own
 
 
 def find_spec(name: str) -> ModuleSpec | None:
     """The spec of 0.1's module path ``name`` (an alias of its new path), or None if it is no old path.
 
-    Raises :class:`ModuleNotFoundError`, naming CHANGELOG.md, for a module that was removed.
+    Raises :class:`ModuleNotFoundError` naming the successor of a module that was removed.
     """
     if name in REMOVED:
-        raise ModuleNotFoundError(f"{name} was removed in pendsweep 0.2: CHANGELOG.md names its successor", name=name)
+        raise ModuleNotFoundError(f"{name} was removed in pendsweep 0.2: {REMOVED[name]}", name=name)
     new = new_path(name)
     return None if new is None else ModuleSpec(name, _Alias(new))

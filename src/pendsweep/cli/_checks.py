@@ -118,6 +118,17 @@ def check_input(path: Path, what: str) -> Path:
     return path
 
 
+def check_not_an_input(path: Path | None, option: str, inputs: Iterable[Path]) -> None:
+    """Refuse an output that would overwrite an input record or its ``.json`` sidecar (a CSV record's metadata)."""
+    if path is None:
+        return
+    target = Path(path).resolve()
+    for record in inputs:
+        record = Path(record).resolve()
+        if target in (record, record.with_suffix(".json")):
+            raise ConfigError(f"{option} {str(path)!r} would overwrite the input {str(record)!r} or its .json sidecar")
+
+
 def key_values(pairs: Iterable[str], what: str) -> dict[str, str]:
     """``NAME=VALUE`` strings (e.g. ``-B signum=stage``) as a dict; the last of a repeated name wins."""
     out = {}

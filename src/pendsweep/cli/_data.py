@@ -10,7 +10,7 @@ import click
 
 from ..errors import ConfigError
 from ._app import ANGLE, FINITE, PATH, RATE, SEED, FiniteFloat, main
-from ._checks import check_input, check_memory, check_output, check_output_dir, positional_or_output
+from ._checks import check_input, check_memory, check_not_an_input, check_output, check_output_dir, positional_or_output
 from ._executor import apply_options, work_options
 from ._executor import max_work as work_limit
 
@@ -105,6 +105,7 @@ def diagnose(data, json_out, report_dir, horizon, folds, causes, jobs, model_fil
     for path in data:
         check_input(path, "record")
     check_output(json_out, "--json", (".json",))
+    check_not_an_input(json_out, "--json", data)
     check_output_dir(report_dir, "--report")
     model = load_model_file(model_file) if model_file is not None else None
     records = [read_record(p, session) for p in data]
@@ -281,6 +282,8 @@ def fit_damping(data, json_out, params_out, mass, skip, plot):
     check_output(json_out, "--json", (".json",))
     check_output(params_out, "--params-out", (".json",))
     check_output(plot, "--plot", FIGURE_SUFFIXES)
+    for out, option in ((json_out, "--json"), (params_out, "--params-out")):
+        check_not_an_input(out, option, data)
     records = [read_record(p) for p in data]
     fit = run(records[0], skip)
     preds = {str(p): predict(fit, r, skip) for p, r in zip(data[1:], records[1:])}

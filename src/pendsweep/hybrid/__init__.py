@@ -37,5 +37,6 @@ def __getattr__(name: str):
         from . import trace
 
         warnings.warn(f"pendsweep.hybrid.{name} moved to pendsweep.hybrid.trace.{name}", DeprecationWarning, 2)
-        return getattr(trace, name)
+        globals()[name] = getattr(trace, name)  # warned once: `from ... import` looks a name up twice
+        return globals()[name]
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -132,6 +132,10 @@ class RemoteRig:
         self.round_trips.append(time.perf_counter() - start)
         return self._reply
 
+    def abort(self) -> None:
+        """Drop the connection at once (the site stops its rig safely on a lost client)."""
+        self.sock.close()
+
     def close(self) -> None:
         """Commit the last trial and end the session (die)."""
         try:
@@ -230,6 +234,9 @@ class TcpTransport:
 
     def run(self, backend, params, state, transient: int, n_rec: int, trace_rows: int, stride: int):
         return run_remote(backend, params, state, transient, n_rec, trace_rows, stride)
+
+    def open(self, url: str) -> RemoteRig:
+        return RemoteRig(*parse_rig_url(url))
 
 
 #: The transport the ``tcp`` entry point names.

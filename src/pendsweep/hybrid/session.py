@@ -3,7 +3,8 @@
 The paper's hybrid bifurcation diagram (Fig. 11(a1)) is measured by stepping
 a parameter of the numerical model *while the test runs*: the specimen
 cannot be put back into a chosen state between points. A :class:`RigSession`
-is that test. It holds one connection to a site (:class:`~.client.RemoteRig`)
+is that test. It holds one connection to a site (a :class:`~pendsweep.backends.transports.RigLink`,
+for ``tcp://`` a :class:`~.client.RemoteRig`)
 and the controller's whole state (numerical model, predictor history,
 filter registers, command delay line) in the client, and runs any number of
 forcing periods, point after point; between points only the numerical
@@ -59,6 +60,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from ..backends.status import Status
+from ..backends.transports import continuous_transport
 from ..errors import ConfigError, PendsweepError, RunFailure
 from ..kernels import N_RECORD_COLUMNS
 from ..kernels._emulated import forcing_table
@@ -78,7 +80,6 @@ from ..kernels._substructured import (
     stroke_status,
 )
 from ..model.params import KERNEL_FIELDS, ModelParams
-from .client import RemoteRig, parse_rig_url
 from .rig import RigLimits
 
 #: Parameters of the numerical model, which the client integrates and a session may change between points.
@@ -303,10 +304,9 @@ class RigSession:
     stop_periods: int = STOP_PERIODS
 
     def __post_init__(self) -> None:
-        host, port = parse_rig_url(self.backend.rig)
         self.dt = self.backend.step(self.params)
         self.state = self.backend.initial_state(self.params, 0.0, 0.0, 0.0, 0.0)
-        self.rig = RemoteRig(host, port)
+        self.rig = continuous_transport(self.backend.rig).open(self.backend.rig)
         self.ticks = 0  # controller ticks run in this session (the time axis: t = ticks dt)
         self.turns = 0  # whole turns of theta taken out of the state so far (the site reports it unwrapped)
         self.hf_run = 0  # periods in a row with high-frequency growth (the instability monitor)
@@ -524,7 +524,7 @@ class RigSession:
     def _abandon(self) -> None:
         if not self.closed:
             self.closed = True
-            self.rig.sock.close()
+            self.rig.abort()
 
 
 def _tapered(command: float, slope: float, homing: tuple[float, float], at: float, period: float):

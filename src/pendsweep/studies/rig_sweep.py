@@ -60,6 +60,7 @@ import pyarrow as pa
 from ..analysis.classify import at_rest, classify_runs
 from ..backends import PointRun
 from ..backends.status import Status
+from ..backends.transports import continuous_transport
 from ..errors import ConfigError
 from ..hybrid.session import (
     STOP_PERIODS,
@@ -138,6 +139,8 @@ def check_rig_sweep(config, backend) -> None:
         raise ConfigError(
             "a remote rig starts every fresh point from its own initial state: --transient auto needs --mode continue"
         )
+    if config.mode == "continue":
+        continuous_transport(backend.rig)  # one connection for the whole test: its transport must hold one
     if config.mode == "continue" and config.kick:
         raise ConfigError(
             f"kick = {config.kick:g} rad: a remote rig's pendulum cannot be kicked from the client; give --kick 0"

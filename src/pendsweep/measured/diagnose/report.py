@@ -342,7 +342,7 @@ def _identification_lines(diag: Diagnosis) -> list[str]:
         "## What the record holds for the oscillator (before any replay)",
         "",
         "Starts of the oscillator's fits, from the force's tones (or sweep), the response at each and any "
-        "transient (`identify.py`); each parameter fitted alone with the others nominal, and K, M, C together:",
+        "transient (`identify/oscillator.py`); each parameter fitted alone with the others nominal, and K, M, C together:",
         "",
         "| record | content | K alone [N/m] | M alone [kg] | K, M, C together | K-M inflation | K-k3 inflation |",
         "|---|---|---|---|---|---|---|",

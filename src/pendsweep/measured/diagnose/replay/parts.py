@@ -157,7 +157,7 @@ class NumericalReplay(Replay):
         # the closer one kept (RK4 and central difference differ by far more than the floor: the
         # external force sampled at the tick, half a tick late, is a damping error). The models are
         # the nominal and, each refined by a few Gauss-Newton steps, the oscillator's K, M or C where
-        # the record points (identify.py): with a coded mass 6 % off the nominal, the nominal alone
+        # the record points (identify/oscillator.py): with a coded mass 6 % off the nominal, the nominal alone
         # read a central difference off an RK4 controller (0.413 against 0.420), and no mass then
         # fitted the output to its floor.
         ident = self.identification()

@@ -1,0 +1,5 @@
+"""``python -m pendsweep``: the ``pendsweep`` command."""
+
+from .cli import run
+
+run()
