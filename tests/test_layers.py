@@ -9,6 +9,7 @@ definitions have one home.
 
 import dataclasses
 import importlib
+import os
 import shutil
 import subprocess
 import sys
@@ -126,6 +127,24 @@ def test_an_old_package_brings_its_submodules_in_either_form():
 
     assert TCP_TRANSPORT is moved and continuous is rig_sweep and transfer is moved_transfer
     assert replay is replay_again is whole  # 0.1's replay module, by either spelling
+
+
+def test_old_paths_warn_at_the_users_line_under_default_filters(tmp_path):
+    script = tmp_path / "user.py"
+    script.write_text("from pendsweep.diagnose import replay\nimport pendsweep.site.rig\n")
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONWARNINGS"}
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120, env=env)
+    assert done.returncode == 0, done.stderr
+    moved = "DeprecationWarning: pendsweep.diagnose.replay moved to pendsweep.measured.diagnose.replay.whole"
+    assert f"{script}:1: {moved}" in done.stderr
+    assert f"{script}:2: DeprecationWarning: pendsweep.site.rig moved to pendsweep.hybrid.rig" in done.stderr
+
+
+def test_no_export_shares_its_name_with_an_old_path():
+    """Old-path code binds ``pendsweep.<old>`` to a stand-in: an export of that name would be replaced."""
+    import pendsweep
+
+    assert not set(pendsweep.__all__) & {old.split(".")[1] for old in _moved.MOVED}
 
 
 def test_old_paths_leave_the_new_packages_names_alone():

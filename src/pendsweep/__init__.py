@@ -65,7 +65,6 @@ _LAZY = {
     "Record": ".measured.records",
     "read_record": ".measured.records",
     "write_record": ".measured.records",
-    "diagnose": ".measured.diagnose",
     "diagnose_records": ".measured.diagnose",
 }
 
@@ -102,7 +101,6 @@ __all__ = [
     "SweepConfig",
     "TABLE_IV",
     "__version__",
-    "diagnose",
     "diagnose_records",
     "load_sweep",
     "make_backend",

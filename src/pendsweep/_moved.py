@@ -79,6 +79,30 @@ def new_path(name: str) -> str | None:
     return None if old is None else MOVED[old] + name[len(old) :]
 
 
+def _warn_moved(message: str) -> None:
+    """A DeprecationWarning blamed on the user's line, past this module's and importlib's frames.
+
+    ``warnings.warn``'s stacklevel cannot reach it: the number of frames
+    between an old path and the code that named it depends on how it was
+    named (``import a.b``, ``from a import b``, ``a.b``), and the default
+    filters show the warning only when it is blamed on ``__main__``.
+    """
+    frame = sys._getframe(1)
+    while frame is not None and (frame.f_code.co_filename in _OWN_FILES or "importlib" in frame.f_code.co_filename):
+        frame = frame.f_back
+    if frame is None:
+        warnings.warn(message, DeprecationWarning, stacklevel=2)
+        return
+    g = frame.f_globals
+    warnings.warn_explicit(
+        message, DeprecationWarning, frame.f_code.co_filename, frame.f_lineno,
+        module=g.get("__name__", "<unknown>"), registry=g.setdefault("__warningregistry__", {}),
+    )  # fmt: skip
+
+
+_OWN_FILES = {__file__, importlib.__file__}
+
+
 class _OldPackage(type(sys)):
     """0.1's package at its old path: a stand-in for the package at ``__moved_to__``.
 
@@ -121,7 +145,7 @@ class _Alias:
         self.new = new
 
     def create_module(self, spec):  # -> types.ModuleType (not imported: 0.2 ms, a sixth of `import pendsweep`)
-        warnings.warn(f"{spec.name} moved to {self.new}; the old path goes in pendsweep 0.3", DeprecationWarning, 2)
+        _warn_moved(f"{spec.name} moved to {self.new}; the old path goes in pendsweep 0.3")
         module = importlib.import_module(self.new)
         if hasattr(module, "__path__"):
             return _OldPackage(spec.name, self.new)
