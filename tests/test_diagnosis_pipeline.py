@@ -53,8 +53,8 @@ def walk(function, *args):
             caller = caller.f_back  # joblib's, numpy's frames between the driver and a stage
         if caller is None or not _is_driver(caller):
             return
-        stage = _module(frame)[len(PACKAGE) + 1 :].split(".")[0]
-        if stage not in HELPERS and (not stays or stays[-1] != stage):
+        stage = _stage_of(_module(frame))  # the driver module's own helpers are the driver, not a stage
+        if stage in STAGES and (not stays or stays[-1] != stage):
             stays.append(stage)
 
     previous = sys.getprofile()

@@ -19,7 +19,6 @@ so they run by name from any folder: ``pendsweep run fig11a``.
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -246,6 +245,8 @@ def resolve_sweep(definition: str | Path) -> Path:
 
 def load_sweep(path: str | Path) -> SweepFile:
     """Read and validate a TOML sweep definition (a path or a built-in name)."""
+    import tomllib  # here, not at the top: the command line imports this module's limits, and tomllib is 1.8 ms of it
+
     path = resolve_sweep(path)
     try:
         text = path.read_bytes().decode("utf-8")

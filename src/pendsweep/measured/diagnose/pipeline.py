@@ -95,9 +95,14 @@ def parts_work(records: list[Record], causes: list[str] | None = None) -> Work:
     )
 
 
+def missing_parts(record: Record) -> list[str]:
+    """The columns ``record`` lacks for a part-by-part diagnosis (command, motion, angle, load cell)."""
+    return [c for c in PART_CHANNELS["transfer"] + PART_CHANNELS["physical"] if c not in record.data]
+
+
 def has_parts(record: Record) -> bool:
-    """Whether ``record`` holds what the part-by-part diagnosis needs (command, motion, angle, load cell)."""
-    return all(c in record.data for c in PART_CHANNELS["transfer"] + PART_CHANNELS["physical"])
+    """Whether ``record`` holds what the part-by-part diagnosis needs."""
+    return not missing_parts(record)
 
 
 def diagnose_parts(
@@ -124,8 +129,7 @@ def diagnose_parts(
         Cross-validation folds.
     """
     for r in records:
-        missing = [c for c in PART_CHANNELS["transfer"] + PART_CHANNELS["physical"] if c not in r.data]
-        if missing:
+        if missing := missing_parts(r):
             raise ConfigError(f"{r.name}: a part-by-part diagnosis needs column(s) {', '.join(missing)}")
     wanted = None if causes is None else set(causes)
     unknown = sorted((wanted or set()) - set(PART_OF))
@@ -193,9 +197,8 @@ def _by_parts(records: list[Record], method: str) -> bool:
         if all(has_parts(r) for r in records):
             return True
         lacking = next(r for r in records if not has_parts(r))
-        missing = [c for c in PART_CHANNELS["transfer"] + PART_CHANNELS["physical"] if c not in lacking.data]
         raise ConfigError(
-            f"{lacking.name}: no {', '.join(missing)} column: a part-by-part diagnosis needs the load cell and the "
+            f"{lacking.name}: no {', '.join(missing_parts(lacking))} column: a part-by-part diagnosis needs the load cell and the "
             "encoder; pass --method closed-loop to replay the whole loop instead"
         )
     if "rig" in kinds:

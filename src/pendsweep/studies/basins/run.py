@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import abc
 import functools
 import math
 import os
@@ -253,7 +254,7 @@ def chunk_ranges(n: int, size: int) -> list[np.ndarray]:
     return [np.arange(first, min(first + size, n)) for first in range(0, n, size)]
 
 
-class SettleScan:
+class SettleScan(abc.ABC):
     """The scan contract (:class:`pendsweep.engine.scan.Scan`) shared by basins and maps.
 
     Their units are chunks of independent starts, each run settled in rounds
@@ -269,17 +270,21 @@ class SettleScan:
 
     resume_columns: list[str] = []
 
+    @abc.abstractmethod
     def chunks(self) -> list[tuple[str, Any]]:
-        raise NotImplementedError
+        """The units, ``[(key, payload)]`` in order."""
 
+    @abc.abstractmethod
     def unit_task(self, payload: Any, n_jobs: int):
-        raise NotImplementedError
+        """The zero-argument callable that runs one unit's ``payload``, returning its ``UnitResult`` list."""
 
+    @abc.abstractmethod
     def starts(self) -> int:
-        raise NotImplementedError
+        """Starts in all (grid cells, or points x starts)."""
 
+    @abc.abstractmethod
     def steps_per_period(self) -> float:
-        raise NotImplementedError
+        """Integration steps per forcing period, averaged over the study."""
 
     def n_units(self) -> int:
         return len(self.chunks())
